@@ -1,0 +1,223 @@
+r"""The compiled time loop of the Galerkin integrator.
+
+Everything below the ``# ---- kernel ----`` marker is copied into each
+generated module after the system's point functions and jitted there as a
+whole, so that one file holds all the code numba caches. The header imports the
+documented stubs of :mod:`.pointwise_interface` only to make this file valid
+Python on its own.
+
+Notation (see the theory page): control points :math:`C = (q^0,\dots,q^s)`,
+quadrature weights :math:`b_i`, tables :math:`\Phi_{i\nu} = \ell_\nu(c_i)` and
+:math:`D_{i\nu} = \ell'_\nu(c_i)`. At quadrature point :math:`i`,
+:math:`Q_i = \sum_\nu \Phi_{i\nu} q^\nu` and :math:`V_i = \tfrac1h\sum_\nu D_{i\nu} q^\nu`;
+
+.. math::
+
+    G^\nu = \sum_i b_i \big[h\,\Phi_{i\nu} L_q^{(i)} + D_{i\nu} L_v^{(i)}\big],
+    \qquad R^0 = p_k + G^0,\quad R^\nu = G^\nu\ (1 \le \nu < s),
+    \qquad p_{k+1} = G^s .
+"""
+
+# ruff: noqa: N803, N806
+from __future__ import annotations
+
+import numpy as np
+
+from ..newton import (
+    CONTINUE,
+    CONVERGED,
+    lu_factor_inplace,
+    lu_solve_inplace,
+    newton_status,
+)
+from .pointwise_interface import HAS_LQV, kernel, point_gradient, point_hessian
+
+# ---- kernel ----
+STATUS_OK = 0
+STATUS_NEWTON_FAILED = 1
+STATUS_SINGULAR = 2
+STATUS_NONFINITE = 3
+
+
+@kernel
+def assemble_gradient(t0, h, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G):
+    """G[nu] = dL_d/dq^nu for all nu = 0..s."""
+    r = b.shape[0]
+    s1, n = C.shape
+    G[:, :] = 0.0
+    for i in range(r):
+        for a in range(n):
+            qa = 0.0
+            va = 0.0
+            for nu in range(s1):
+                qa += Phi[i, nu] * C[nu, a]
+                va += D[i, nu] * C[nu, a]
+            Q[a] = qa
+            V[a] = va / h
+        point_gradient(t0 + c[i] * h, Q, V, prm, Lq, Lv)
+        for nu in range(s1):
+            wq = b[i] * h * Phi[i, nu]
+            wv = b[i] * D[i, nu]
+            for a in range(n):
+                G[nu, a] += wq * Lq[a] + wv * Lv[a]
+
+
+@kernel
+def assemble_newton(t0, h, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K):
+    """G as above and K[(nu, a), (mu, c)] = dG^nu_a / dq^mu_c, nu = 0..s-1, mu = 1..s."""
+    r = b.shape[0]
+    s1, n = C.shape
+    s = s1 - 1
+    G[:, :] = 0.0
+    K[:, :] = 0.0
+    for i in range(r):
+        for a in range(n):
+            qa = 0.0
+            va = 0.0
+            for nu in range(s1):
+                qa += Phi[i, nu] * C[nu, a]
+                va += D[i, nu] * C[nu, a]
+            Q[a] = qa
+            V[a] = va / h
+        point_hessian(t0 + c[i] * h, Q, V, prm, Lq, Lv, Lqq, Lqv, Lvv)
+        for nu in range(s1):
+            wq = b[i] * h * Phi[i, nu]
+            wv = b[i] * D[i, nu]
+            for a in range(n):
+                G[nu, a] += wq * Lq[a] + wv * Lv[a]
+        for nu in range(s):
+            for mu in range(1, s1):
+                w_qq = b[i] * h * Phi[i, nu] * Phi[i, mu]
+                w_qv = b[i] * Phi[i, nu] * D[i, mu]
+                w_vq = b[i] * D[i, nu] * Phi[i, mu]
+                w_vv = b[i] * D[i, nu] * D[i, mu] / h
+                row0 = nu * n
+                col0 = (mu - 1) * n
+                for a in range(n):
+                    for cc in range(n):
+                        acc = w_qq * Lqq[a, cc] + w_vv * Lvv[a, cc]
+                        if HAS_LQV:
+                            acc += w_qv * Lqv[a, cc] + w_vq * Lqv[cc, a]
+                        K[row0 + a, col0 + cc] += acc
+
+
+@kernel
+def solve_stages(t0, h, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
+    """Newton on the stage equations; C[1:] holds the guess on entry, the solution on exit.
+
+    Returns (status, iterations, last increment, last residual max-norm).
+    """
+    Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv = work
+    s1, n = C.shape
+    s = s1 - 1
+    previous = np.inf
+    residual = np.inf
+    for it in range(1, maxiter + 1):
+        assemble_newton(t0, h, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K)
+        residual = 0.0
+        for nu in range(s):
+            for a in range(n):
+                val = G[nu, a] + (pk[a] if nu == 0 else 0.0)
+                R[nu * n + a] = -val
+                if abs(val) > residual:
+                    residual = abs(val)
+        if not residual < 1e300:
+            return STATUS_NONFINITE, it, np.inf, residual
+        if not lu_factor_inplace(K, piv):
+            return STATUS_SINGULAR, it, np.inf, residual
+        lu_solve_inplace(K, piv, R)
+        increment = 0.0
+        size = 0.0
+        for nu in range(1, s1):
+            for a in range(n):
+                C[nu, a] += R[(nu - 1) * n + a]
+                if abs(R[(nu - 1) * n + a]) > increment:
+                    increment = abs(R[(nu - 1) * n + a])
+                if abs(C[nu, a]) > size:
+                    size = abs(C[nu, a])
+        status = newton_status(increment, previous, 1.0 + size, tol, it, maxiter)
+        if status == CONVERGED:
+            return STATUS_OK, it, increment, residual
+        if status != CONTINUE:
+            return STATUS_NEWTON_FAILED, it, increment, residual
+        previous = increment
+    return STATUS_NEWTON_FAILED, maxiter, previous, residual
+
+
+@kernel
+def make_work(s, n):
+    """Preallocated work arrays of one step (allocated once per run)."""
+    Q = np.zeros(n)
+    V = np.zeros(n)
+    Lq = np.zeros(n)
+    Lv = np.zeros(n)
+    Lqq = np.zeros((n, n))
+    Lqv = np.zeros((n, n))
+    Lvv = np.zeros((n, n))
+    G = np.zeros((s + 1, n))
+    K = np.zeros((s * n, s * n))
+    R = np.zeros(s * n)
+    piv = np.zeros(s * n, dtype=np.int64)
+    return (Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv)
+
+
+@kernel
+def integrate_kernel(
+    q0, p0, v0, t0, h, n_steps, save_every, prm, b, c, d, Phi, D, E, tol, maxiter,
+    t_out, q_out, p_out, iterations_out,
+):
+    """Run ``n_steps`` steps of the position–momentum map from (q0, p0).
+
+    Saves rows at steps k with k % save_every == 0 and at the last step.
+    Returns (status, steps completed, rows saved, max residual, failing increment).
+    """
+    n = q0.shape[0]
+    s1 = d.shape[0]
+    s = s1 - 1
+    work = make_work(s, n)
+    G = work[7]
+    C = np.zeros((s1, n))
+    C_prev = np.zeros((s1, n))
+    pk = p0.copy()
+    for a in range(n):
+        for nu in range(s1):
+            C[nu, a] = q0[a] + d[nu] * h * v0[a]
+    t_out[0] = t0
+    q_out[0, :] = q0
+    p_out[0, :] = p0
+    saved = 1
+    worst = 0.0
+    for k in range(n_steps):
+        tk = t0 + k * h
+        if k > 0:
+            for nu in range(s1):
+                for a in range(n):
+                    C_prev[nu, a] = C[nu, a]
+            for nu in range(1, s1):
+                for a in range(n):
+                    acc = 0.0
+                    for mu in range(s1):
+                        acc += E[nu, mu] * C_prev[mu, a]
+                    C[nu, a] = acc
+            for a in range(n):
+                C[0, a] = C_prev[s, a]
+        status, its, increment, residual = solve_stages(
+            tk, h, C, pk, prm, b, c, Phi, D, tol, maxiter, work
+        )
+        iterations_out[k] = its
+        if status != STATUS_OK:
+            return status, k, saved, worst, increment
+        if residual > worst:
+            worst = residual
+        assemble_gradient(tk, h, C, prm, b, c, Phi, D, work[0], work[1], work[2], work[3], G)
+        for a in range(n):
+            pk[a] = G[s, a]
+            if not abs(pk[a]) < 1e300:
+                return STATUS_NONFINITE, k, saved, worst, increment
+        if (k + 1) % save_every == 0 or k + 1 == n_steps:
+            t_out[saved] = t0 + (k + 1) * h
+            for a in range(n):
+                q_out[saved, a] = C[s, a]
+                p_out[saved, a] = pk[a]
+            saved += 1
+    return STATUS_OK, n_steps, saved, worst, 0.0

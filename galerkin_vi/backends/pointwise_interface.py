@@ -1,0 +1,36 @@
+"""The contract between generated code and the compiled time loop.
+
+Every generated kernel module defines the names below (with ``N`` the number of
+coordinates); :mod:`galerkin_vi.backends.kernel_template` is written against
+them. The stubs here only document the interface and make the template a
+valid, lintable Python module; the generator replaces them.
+
+All point functions evaluate at one point ``(t, q, v)`` with parameter vector
+``prm`` and write into preallocated arrays, so the time loop allocates nothing.
+Entries of ``Lqq``, ``Lqv``, ``Lvv`` that are identically zero are never
+written: the caller zeroes those arrays once.
+"""
+
+from __future__ import annotations
+
+HAS_LQV = True  # False when d2L/dq dv is identically zero: the kernel skips that block
+
+
+def kernel(function):
+    """Decorator applied to every kernel function (``numba.njit`` when compiled)."""
+    return function
+
+
+def point_gradient(t, q, v, prm, Lq, Lv):
+    """Write dL/dq into ``Lq`` and dL/dv into ``Lv`` (shape (N,) each)."""
+    raise NotImplementedError("generated per system")
+
+
+def point_hessian(t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv):
+    """Write the gradient and the second derivatives (shape (N, N) each)."""
+    raise NotImplementedError("generated per system")
+
+
+def lagrangian(t, q, v, prm):
+    """Return L(t, q, v)."""
+    raise NotImplementedError("generated per system")

@@ -1,0 +1,67 @@
+"""Exceptions and warnings raised by galerkin_vi."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .trajectory import Trajectory
+
+__all__ = [
+    "ConditioningWarning",
+    "ConvergenceError",
+    "DegenerateLagrangianError",
+    "OrderReductionWarning",
+]
+
+
+class DegenerateLagrangianError(ValueError):
+    r"""The Hessian :math:`\partial^2 L / \partial v^2` is singular where it must be inverted.
+
+    A Galerkin variational integrator needs a regular Lagrangian: the Legendre
+    transform :math:`p = \partial L/\partial v` must be invertible for the
+    momentum-matching equations to have a unique solution.
+    """
+
+
+class ConvergenceError(RuntimeError):
+    """The Newton solve of a step's stage equations failed.
+
+    Everything computed before the failing step is kept.
+
+    Attributes
+    ----------
+    step : int
+        Index ``k`` of the step ``t_k -> t_{k+1}`` that failed.
+    t : float
+        Time ``t_k`` at the start of the failing step.
+    residual : float
+        Max-norm of the last Newton increment or residual seen.
+    partial : Trajectory or None
+        The trajectory up to and including ``t_k`` (saved points only).
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        step: int,
+        t: float,
+        residual: float,
+        partial: Trajectory | None = None,
+        **extra: Any,
+    ) -> None:
+        super().__init__(message)
+        self.step = step
+        self.t = t
+        self.residual = residual
+        self.partial = partial
+        self.extra = extra
+
+
+class OrderReductionWarning(UserWarning):
+    """The quadrature order is below ``2 * degree``: the method loses order."""
+
+
+class ConditioningWarning(UserWarning):
+    """A choice that is known to make the stage equations ill-conditioned."""

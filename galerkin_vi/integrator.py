@@ -1,0 +1,294 @@
+r"""The integrator: a system, a method and a backend, run over many steps."""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Mapping
+from functools import cached_property
+
+import numpy as np
+import sympy as sp
+from numpy.typing import ArrayLike, NDArray
+
+from . import codegen
+from .backends import numpy as numpy_backend
+from .backends import resolve_backend
+from .backends.numba import load_kernels
+from .errors import ConvergenceError, DegenerateLagrangianError
+from .method import Galerkin
+from .newton import CONVERGED, newton_solve
+from .system import LagrangianSystem, is_regular
+from .trajectory import Trajectory
+
+__all__ = ["Integrator"]
+
+_STATUS_MESSAGES = {
+    1: "Newton iteration did not converge",
+    2: "stage Jacobian is singular",
+    3: "non-finite values (NaN or inf) appeared",
+}
+
+
+class Integrator:
+    r"""Galerkin variational integrator of a :class:`LagrangianSystem`.
+
+    Parameters
+    ----------
+    system : LagrangianSystem
+    method : Galerkin, optional
+        Defaults to ``Galerkin(2)`` (order 4).
+    backend : {"auto", "numba", "numpy"}
+        ``"numba"`` runs the whole time loop in generated, compiled code
+        (compiled once per system, cached on disk); ``"numpy"`` is the slow,
+        independent reference. ``"auto"`` picks numba when available.
+    tol : float
+        Relative Newton increment tolerance; below it the iteration continues
+        until the increment is zero or stops decreasing (no round-off drift).
+    maxiter : int
+        Newton iteration cap per step.
+
+    Notes
+    -----
+    One step of the position–momentum map :math:`(q_k, p_k) \mapsto (q_{k+1},
+    p_{k+1})` solves, for the control points :math:`q^1..q^s`,
+
+    .. math::
+
+        p_k + \frac{\partial L_d}{\partial q^0} = 0, \qquad
+        \frac{\partial L_d}{\partial q^\nu} = 0 \ (0 < \nu < s), \qquad
+        p_{k+1} = \frac{\partial L_d}{\partial q^s},
+
+    by Newton's method with the exact Jacobian, started from the previous
+    step's polynomial extrapolated.
+    """
+
+    def __init__(
+        self,
+        system: LagrangianSystem,
+        method: Galerkin | None = None,
+        backend: str = "auto",
+        tol: float = 1e-14,
+        maxiter: int = 30,
+    ) -> None:
+        if not isinstance(system, LagrangianSystem):
+            raise TypeError(f"system must be a LagrangianSystem, got {type(system).__name__}")
+        method = Galerkin(2) if method is None else method
+        if not isinstance(method, Galerkin):
+            raise TypeError(f"method must be a Galerkin method, got {type(method).__name__}")
+        if not (isinstance(tol, numbers.Real) and 0 < tol < 1):
+            raise ValueError(f"tol must be a real number in (0, 1), got {tol!r}")
+        if isinstance(maxiter, bool) or not isinstance(maxiter, numbers.Integral) or maxiter < 1:
+            raise ValueError(f"maxiter must be a positive int, got {maxiter!r}")
+        self.system = system
+        self.method = method
+        self.backend = resolve_backend(backend)
+        self.tol = float(tol)
+        self.maxiter = int(maxiter)
+
+    def __repr__(self) -> str:
+        return f"Integrator({self.system!r}, {self.method!r}, backend={self.backend!r})"
+
+    @cached_property
+    def _spec(self) -> codegen.KernelSpec:
+        return codegen.kernel_spec(self.system)
+
+    @cached_property
+    def _kernels(self):
+        return load_kernels(self._spec)
+
+    @property
+    def source(self) -> str:
+        """Source of the generated kernel module (what the compiled backend runs)."""
+        if self.backend == "numba":
+            return self._kernels.__loader__.get_source(self._kernels.__name__)
+        key = codegen.signature(self._spec, "source", "")
+        return codegen.render_module(self._spec, key)
+
+    # ------------------------------------------------------------ validation
+    def _state(self, name: str, x: ArrayLike) -> NDArray[np.float64]:
+        try:
+            arr = np.array(x, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"{name} must be an array of real numbers, got {x!r}") from exc
+        if arr.shape != (self.system.n,):
+            raise ValueError(f"{name} must have shape ({self.system.n},), got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} contains NaN or inf: {arr}")
+        return arr
+
+    @staticmethod
+    def _step_size(h: float) -> float:
+        if not isinstance(h, numbers.Real) or isinstance(h, bool):
+            raise TypeError(f"h must be a real number, got {h!r}")
+        h = float(h)
+        if not np.isfinite(h) or h == 0.0:
+            raise ValueError(f"h must be finite and nonzero, got {h}")
+        return h
+
+    def _initial_momentum(self, q0, v0, p0, t0, prm_dict):
+        if (v0 is None) == (p0 is None):
+            raise ValueError("give exactly one of v0 (velocities) and p0 (momenta)")
+        system = self.system
+        if v0 is not None:
+            v = self._state("v0", v0)
+            m = system.evaluate("Lvv", t0, q0, v, system.parameter_vector(prm_dict))
+            if not np.all(np.isfinite(m)) or not is_regular(m.reshape(system.n, system.n)):
+                raise DegenerateLagrangianError(
+                    f"d2L/dv2 is singular at q0={q0}, v0={v}: the Lagrangian is degenerate there"
+                )
+            p = system.legendre(q0, v, t0, prm_dict)
+        else:
+            p = self._state("p0", p0)
+            v = system.inverse_legendre(q0, p, t0, prm_dict)
+        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(v))):
+            raise ValueError(f"the Legendre transform at q0={q0} is not finite")
+        return np.asarray(p, dtype=float), np.asarray(v, dtype=float)
+
+    # ------------------------------------------------------------------- run
+    def integrate(
+        self,
+        q0: ArrayLike,
+        v0: ArrayLike | None = None,
+        p0: ArrayLike | None = None,
+        *,
+        h: float,
+        n_steps: int,
+        t0: float = 0.0,
+        params: Mapping[sp.Symbol | str, float] | None = None,
+        save_every: int = 1,
+    ) -> Trajectory:
+        """Integrate ``n_steps`` steps of size ``h`` from ``q0`` and ``v0`` or ``p0``.
+
+        Parameters
+        ----------
+        q0 : array_like, shape (n,)
+        v0, p0 : array_like, shape (n,)
+            Exactly one: initial velocities (mapped by the continuous Legendre
+            transform) or momenta.
+        h : float
+            Step size (negative integrates backwards).
+        n_steps : int
+        t0 : float
+        params : mapping, optional
+            Parameter values overriding the system's defaults (symbols or names).
+        save_every : int
+            Save every ``save_every``-th state (and always the last).
+
+        Returns
+        -------
+        Trajectory
+
+        Raises
+        ------
+        ConvergenceError
+            If a step's Newton solve fails; ``.partial`` holds every saved state
+            before the failing step.
+        """
+        system = self.system
+        q0 = self._state("q0", q0)
+        h = self._step_size(h)
+        if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 0:
+            raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
+        if (
+            isinstance(save_every, bool)
+            or not isinstance(save_every, numbers.Integral)
+            or save_every < 1
+        ):
+            raise ValueError(f"save_every must be a positive int, got {save_every!r}")
+        t0 = float(t0)
+        if not np.isfinite(t0):
+            raise ValueError(f"t0 must be finite, got {t0}")
+        prm = system.parameter_vector(params)
+        prm_dict = dict(zip(system.params, prm, strict=True))
+        p0_arr, v0_arr = self._initial_momentum(q0, v0, p0, t0, prm_dict)
+
+        n_steps = int(n_steps)
+        n_saved = n_steps // save_every + 1 + (1 if n_steps % save_every else 0)
+        t_out = np.empty(n_saved)
+        q_out = np.empty((n_saved, system.n))
+        p_out = np.empty((n_saved, system.n))
+        iterations = np.zeros(n_steps, dtype=np.int64)
+        tb = self.method.tables
+        args = (q0, p0_arr, v0_arr, t0, h, n_steps, int(save_every), prm)
+        if self.backend == "numba":
+            status, done, saved, worst, increment = self._kernels.integrate_kernel(
+                *args, tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation,
+                self.tol, self.maxiter, t_out, q_out, p_out, iterations,
+            )
+        else:
+            status, done, saved, worst, increment = numpy_backend.integrate(
+                system, tb, *args, self.tol, self.maxiter, t_out, q_out, p_out, iterations
+            )
+        traj = Trajectory(
+            t=t_out[:saved], q=q_out[:saved], p=p_out[:saved],
+            newton_iterations=iterations[: done + (status != 0)],
+            max_residual=float(worst), system=system, params=prm,
+        )
+        if status != 0:
+            t_fail = t0 + done * h
+            raise ConvergenceError(
+                f"step {done} (t = {t_fail:.6g}, h = {h:.3g}): {_STATUS_MESSAGES[int(status)]} "
+                f"(last increment {increment:.3g}); the trajectory up to the failing step is in "
+                ".partial. Try a smaller h.",
+                step=int(done), t=t_fail, residual=float(increment), partial=traj,
+            )
+        return traj
+
+    def step(
+        self, q0: ArrayLike, p0: ArrayLike, h: float, t0: float = 0.0, params=None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """One step of the position–momentum map, ``(q_k, p_k) -> (q_{k+1}, p_{k+1})``."""
+        traj = self.integrate(q0, p0=p0, h=h, n_steps=1, t0=t0, params=params)
+        return traj.q[-1].copy(), traj.p[-1].copy()
+
+    def step_del(
+        self, q0: ArrayLike, q1: ArrayLike, h: float, t0: float = 0.0, params=None
+    ) -> NDArray[np.float64]:
+        r"""One step of the position-only DEL form, ``(q_{k-1}, q_k) -> q_{k+1}``.
+
+        Solves the discrete Euler–Lagrange equation
+
+        .. math::
+
+            D_2 L_d(q_{k-1}, q_k) + D_1 L_d(q_k, q_{k+1}) = 0
+
+        together with the interior stationarity conditions of both steps, as
+        one Newton system in the interior points of step :math:`k-1` and all
+        free control points of step :math:`k`. ``q0`` is at time ``t0``.
+        """
+        system = self.system
+        qa, qb = self._state("q0", q0), self._state("q1", q1)
+        h = self._step_size(h)
+        prm = system.parameter_vector(params)
+        tb = self.method.tables
+        s = tb.d.size - 1
+        n = system.n
+        t1 = float(t0) + h
+        # guess: the line through q0, q1 for step k-1, continued for step k
+        first = qa + tb.d[:, None] * (qb - qa)
+        second = qb + tb.d[:, None] * (qb - qa)
+        x0 = np.concatenate([first[1:s].ravel(), second[1:].ravel()])
+        m = (s - 1) * n
+
+        def residual_and_jacobian(x: NDArray) -> tuple[NDArray, NDArray]:
+            Ca = np.vstack([qa, x[:m].reshape(s - 1, n), qb])
+            Cb = np.vstack([qb, x[m:].reshape(s, n)])
+            Ga, Ha = numpy_backend.discrete_hessian(system, tb, float(t0), h, Ca, prm)
+            Gb, Hb = numpy_backend.discrete_hessian(system, tb, t1, h, Cb, prm)
+            # equations: interior of step k-1, DEL at q_k, interior of step k
+            R = np.concatenate([Ga[1:s].ravel(), Ga[s] + Gb[0], Gb[1:s].ravel()])
+            J = np.zeros((R.size, x.size))
+            J[:m, :m] = Ha[1:s, :, 1:s, :].reshape(m, m)
+            J[m : m + n, :m] = Ha[s, :, 1:s, :].reshape(n, m)
+            J[m : m + n, m:] = Hb[0, :, 1:, :].reshape(n, s * n)
+            J[m + n :, m:] = Hb[1:s, :, 1:, :].reshape(m, s * n)
+            return R, J
+
+        result = newton_solve(residual_and_jacobian, x0, tol=self.tol, maxiter=self.maxiter)
+        if result.status != CONVERGED:
+            raise ConvergenceError(
+                f"step_del: Newton iteration did not converge (increment {result.increment:.3g})",
+                step=0, t=t1, residual=result.increment,
+            )
+        return result.x[-n:].copy()
+

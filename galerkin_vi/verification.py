@@ -1,0 +1,195 @@
+r"""Measuring the order of convergence.
+
+The error of a run with :math:`N` steps over :math:`[t_0, t_0 + T]` is the max-norm
+of the final position error. The order is the least-squares slope of
+:math:`\log e` against :math:`\log h` over the points that lie in the
+asymptotic range: points at the round-off floor (:math:`e \le 10^{3} N
+\varepsilon\,(1 + |q|)`) or where the error stops decreasing are masked out.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .integrator import Integrator
+from .method import Galerkin
+from .system import LagrangianSystem
+
+__all__ = ["OrderResult", "fit_order", "measure_order"]
+
+_EPS = np.finfo(float).eps
+
+
+@dataclass(frozen=True)
+class OrderResult:
+    """Outcome of :func:`measure_order`.
+
+    Attributes
+    ----------
+    order : float
+        Fitted slope of log(error) against log(h) over the masked points.
+    predicted : int
+        The method's predicted order.
+    errors, step_sizes : ndarray
+        Final position errors (max-norm) and step sizes, one per step count.
+    step_counts : ndarray of int
+    mask : ndarray of bool
+        Points used in the fit.
+    reference : ndarray, shape (n,)
+        The reference final position.
+    """
+
+    order: float
+    predicted: int
+    errors: NDArray[np.float64]
+    step_sizes: NDArray[np.float64]
+    step_counts: NDArray[np.int64]
+    mask: NDArray[np.bool_]
+    reference: NDArray[np.float64]
+
+    def table(self) -> str:
+        """The errors and pairwise orders as a small text table."""
+        lines = [f"{'N':>8} {'h':>11} {'error':>11} {'order':>7}"]
+        for j, (n, h, e) in enumerate(zip(self.step_counts, self.step_sizes, self.errors, strict=True)):
+            if j == 0:
+                rate = ""
+            else:
+                rate = f"{np.log(self.errors[j - 1] / e) / np.log(self.step_sizes[j - 1] / h):7.2f}"
+            flag = "" if self.mask[j] else "  (excluded)"
+            lines.append(f"{n:8d} {h:11.4e} {e:11.3e} {rate:>7}{flag}")
+        lines.append(f"fitted order {self.order:.2f}, predicted {self.predicted}")
+        return "\n".join(lines)
+
+
+def fit_order(
+    step_sizes: ArrayLike, errors: ArrayLike, floor: ArrayLike | float = 0.0
+) -> tuple[float, NDArray[np.bool_]]:
+    """Least-squares slope of log(error) on log(h) over the asymptotic points.
+
+    A point is used when its error is above ``floor`` and below the error of the
+    next larger step (errors must decrease as h decreases).
+
+    Returns
+    -------
+    order : float
+        NaN when fewer than two points remain.
+    mask : ndarray of bool
+    """
+    h = np.asarray(step_sizes, dtype=float)
+    e = np.asarray(errors, dtype=float)
+    order = np.argsort(-h)
+    h, e = h[order], e[order]
+    floor = np.broadcast_to(np.asarray(floor, dtype=float), e.shape)[order]
+    mask = np.isfinite(e) & (e > floor)
+    for j in range(1, e.size):
+        if mask[j] and not e[j] < e[j - 1]:
+            mask[j] = False
+    inverse = np.empty_like(order)
+    inverse[order] = np.arange(order.size)
+    if mask.sum() < 2:
+        return float("nan"), mask[inverse]
+    slope = np.polyfit(np.log(h[mask]), np.log(e[mask]), 1)[0]
+    return float(slope), mask[inverse]
+
+
+def measure_order(
+    system: LagrangianSystem,
+    method: Galerkin,
+    q0: ArrayLike,
+    v0: ArrayLike | None = None,
+    p0: ArrayLike | None = None,
+    *,
+    t_final: float = 2.0,
+    step_counts: Sequence[int] = (8, 16, 32),
+    reference: Callable[[float], ArrayLike] | ArrayLike | None = None,
+    t0: float = 0.0,
+    params: Mapping | None = None,
+    backend: str = "auto",
+    integrator: Integrator | None = None,
+) -> OrderResult:
+    r"""Measure the order of ``method`` on ``system`` from the final position error.
+
+    Parameters
+    ----------
+    system, method
+        What to test.
+    q0, v0, p0
+        Initial data (exactly one of ``v0``, ``p0``).
+    t_final : float
+        Length of the time interval.
+    step_counts : sequence of int
+        Numbers of steps; at least two.
+    reference : callable, array or None
+        Exact final position: a function ``t -> q(t)`` or the array
+        :math:`q(t_0 + T)`. ``None`` computes a reference with the same method
+        at ``4 * max(step_counts)`` and ``2 * max(step_counts)`` steps, combined
+        by Richardson extrapolation with the predicted order:
+        :math:`q_{\rm ref} = q_{4N} + (q_{4N} - q_{2N})/(2^p - 1)`.
+    integrator : Integrator, optional
+        Reuse an integrator (and its compiled kernel) instead of building one.
+
+    Returns
+    -------
+    OrderResult
+
+    Examples
+    --------
+    >>> import sympy as sp, numpy as np, galerkin_vi as gvi
+    >>> x, v = sp.symbols("x v")
+    >>> system = gvi.LagrangianSystem(v**2 / 2 - x**2 / 2, [x], [v])
+    >>> exact = lambda t: [np.cos(t)]
+    >>> result = gvi.measure_order(system, gvi.Galerkin(1), [1.0], [0.0], t_final=2.0,
+    ...                            step_counts=[10, 20, 40], reference=exact, backend="numpy")
+    >>> round(result.order, 1)
+    2.0
+    """
+    counts = np.array(sorted(int(n) for n in step_counts), dtype=np.int64)
+    if counts.size < 2 or counts[0] < 1:
+        raise ValueError(f"step_counts needs at least two positive counts, got {list(step_counts)}")
+    if not (np.isfinite(t_final) and t_final != 0):
+        raise ValueError(f"t_final must be finite and nonzero, got {t_final}")
+    if integrator is None:
+        integrator = Integrator(system, method, backend=backend)
+
+    def final_position(n_steps: int) -> NDArray:
+        traj = integrator.integrate(
+            q0, v0, p0, h=t_final / n_steps, n_steps=n_steps, t0=t0, params=params,
+            save_every=n_steps,
+        )
+        return traj.q[-1]
+
+    if reference is None:
+        fine, finer = final_position(2 * counts[-1]), final_position(4 * counts[-1])
+        ref = finer + (finer - fine) / (2.0**method.order - 1.0)
+    elif callable(reference):
+        ref = np.asarray(reference(t0 + t_final), dtype=float)
+    else:
+        ref = np.asarray(reference, dtype=float)
+    if ref.shape != (system.n,):
+        raise ValueError(f"reference must give shape ({system.n},), got {ref.shape}")
+
+    errors = np.array([np.max(np.abs(final_position(int(n)) - ref)) for n in counts])
+    step_sizes = t_final / counts
+    floor = 1e3 * counts * _EPS * (1.0 + np.max(np.abs(ref)))
+    order, mask = fit_order(step_sizes, errors, floor)
+    if np.isnan(order):
+        warnings.warn(
+            "fewer than two step counts are in the asymptotic range (errors at the round-off "
+            "floor or not decreasing): choose fewer steps or a longer t_final",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+    return OrderResult(
+        order=order,
+        predicted=method.order,
+        errors=errors,
+        step_sizes=step_sizes,
+        step_counts=counts,
+        mask=mask,
+        reference=ref,
+    )
