@@ -32,6 +32,7 @@ import math
 import numbers
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TypeVar
 
 import mpmath
 import numpy as np
@@ -61,6 +62,9 @@ _FAMILIES: dict[str, tuple[int, Callable[[int], int]]] = {
 # Newton iterations allowed per root.  From the starting guesses used below convergence is
 # quadratic after at most a few steps; the cap only turns a hypothetical failure into an error.
 _MAX_NEWTON_ITERATIONS = 100
+
+# float during the cheap first Newton phase, mpmath.mpf afterwards
+_Real = TypeVar("_Real", float, mpmath.mpf)
 
 
 def _require_int(value: object, name: str, minimum: int) -> int:
@@ -187,23 +191,34 @@ class QuadratureRule:
         return f"{self.family}({self.npoints})"
 
 
-def _legendre_with_derivative(n: int, x: mpmath.mpf) -> tuple[mpmath.mpf, mpmath.mpf, mpmath.mpf]:
+def _legendre_with_derivative(n: int, x: _Real) -> tuple[_Real, _Real, _Real]:
     r"""Evaluate :math:`P_n(x)`, :math:`P_{n-1}(x)` and :math:`P_n'(x)` for :math:`n \ge 1`.
 
     Uses the three-term recurrence :math:`kP_k = (2k-1)xP_{k-1} - (k-1)P_{k-2}` and
     :math:`P_k' = P_{k-2}' + (2k-1)P_{k-1}`, which stays accurate near :math:`x = \pm 1`
-    (unlike :math:`P_n' = n(xP_n - P_{n-1})/(x^2 - 1)`).
+    (unlike :math:`P_n' = n(xP_n - P_{n-1})/(x^2 - 1)`).  Works for ``float`` and ``mpf``.
     """
-    p_prev, p = mpmath.mpf(1), x
-    dp_prev, dp = mpmath.mpf(0), mpmath.mpf(1)
+    p_prev, p = 1, x
+    dp_prev, dp = 0, 1
     for k in range(2, n + 1):
         p_prev, p = p, ((2 * k - 1) * x * p - (k - 1) * p_prev) / k
         dp_prev, dp = dp, dp_prev + (2 * k - 1) * p_prev
     return p, p_prev, dp
 
 
-def _newton(step: Callable[[mpmath.mpf], mpmath.mpf], x: mpmath.mpf, tol: mpmath.mpf) -> mpmath.mpf:
-    """Iterate ``x -= step(x)`` until the step is below ``tol``; the last step is applied."""
+def _newton(step: Callable[[_Real], _Real], guess: float, tol: mpmath.mpf) -> mpmath.mpf:
+    """Newton's method ``x -= step(x)``: in float64 first (cheap), then in mpmath.
+
+    The float64 phase stops at a step of 1e-12; the mpmath phase (at the current precision)
+    stops after applying a step of at most ``tol``, which takes three steps from there.
+    """
+    x = guess
+    for _ in range(_MAX_NEWTON_ITERATIONS):
+        dx = step(x)
+        x -= dx
+        if abs(dx) <= 1e-12:
+            break
+    x = mpmath.mpf(x)
     for _ in range(_MAX_NEWTON_ITERATIONS):
         dx = step(x)
         x -= dx
@@ -243,7 +258,7 @@ def _gauss_legendre_mp_cached(
     with mpmath.workdps(dps + _GUARD_DIGITS):
         tol = mpmath.mpf(10) ** (-(dps + _GUARD_DIGITS // 2))
 
-        def step(x: mpmath.mpf) -> mpmath.mpf:
+        def step(x: _Real) -> _Real:
             p, _, dp = _legendre_with_derivative(m, x)
             return p / dp
 
@@ -255,7 +270,7 @@ def _gauss_legendre_mp_cached(
         upper = []
         # Roots x_k > 0 in increasing order, from the starting guesses cos(pi(4k-1)/(4m+2)).
         for k in range(m // 2, 0, -1):
-            x = _newton(step, mpmath.cos(mpmath.pi * (4 * k - 1) / (4 * m + 2)), tol)
+            x = _newton(step, math.cos(math.pi * (4 * k - 1) / (4 * m + 2)), tol)
             if not 0 < x < 1:
                 raise RuntimeError(f"Gauss-Legendre node {k} of {m} outside (0, 1)")
             upper.append(pair(x))
@@ -272,7 +287,7 @@ def _gauss_lobatto_mp_cached(
     with mpmath.workdps(dps + _GUARD_DIGITS):
         tol = mpmath.mpf(10) ** (-(dps + _GUARD_DIGITS // 2))
 
-        def step(x: mpmath.mpf) -> mpmath.mpf:
+        def step(x: _Real) -> _Real:
             # d/dx (x P_n - P_{n-1}) = (n + 1) P_n
             p, p_prev, _ = _legendre_with_derivative(n, x)
             return (x * p - p_prev) / ((n + 1) * p)
@@ -285,7 +300,7 @@ def _gauss_lobatto_mp_cached(
         upper = []
         # Interior roots x_j > 0 in increasing order, from the guesses cos(pi j / n).
         for j in range((n - 1) // 2, 0, -1):
-            x = _newton(step, mpmath.cos(mpmath.pi * j / n), tol)
+            x = _newton(step, math.cos(math.pi * j / n), tol)
             if not 0 < x < 1:
                 raise RuntimeError(f"Gauss-Lobatto node {j} of {m} outside (0, 1)")
             upper.append(pair(x))

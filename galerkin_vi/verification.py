@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .errors import ConvergenceError
 from .integrator import Integrator
 from .method import Galerkin
 from .system import LagrangianSystem
@@ -67,12 +68,17 @@ class OrderResult:
 
 
 def fit_order(
-    step_sizes: ArrayLike, errors: ArrayLike, floor: ArrayLike | float = 0.0
+    step_sizes: ArrayLike,
+    errors: ArrayLike,
+    floor: ArrayLike | float = 0.0,
+    finest: int | None = None,
 ) -> tuple[float, NDArray[np.bool_]]:
     """Least-squares slope of log(error) on log(h) over the asymptotic points.
 
     A point is used when its error is above ``floor`` and below the error of the
-    next larger step (errors must decrease as h decreases).
+    next larger step (errors must decrease as h decreases). With ``finest``,
+    only that many of the smallest valid step sizes are used: the asymptotic
+    range is at the small-h end.
 
     Returns
     -------
@@ -89,6 +95,8 @@ def fit_order(
     for j in range(1, e.size):
         if mask[j] and not e[j] < e[j - 1]:
             mask[j] = False
+    if finest is not None and mask.sum() > finest:
+        mask[np.flatnonzero(mask)[:-finest]] = False
     inverse = np.empty_like(order)
     inverse[order] = np.arange(order.size)
     if mask.sum() < 2:
@@ -105,8 +113,10 @@ def measure_order(
     p0: ArrayLike | None = None,
     *,
     t_final: float = 2.0,
-    step_counts: Sequence[int] = (8, 16, 32),
+    step_counts: Sequence[int] | str = (8, 16, 32),
     reference: Callable[[float], ArrayLike] | ArrayLike | None = None,
+    window: tuple[float, float] = (1e-10, 1e-4),
+    norm: str = "final",
     t0: float = 0.0,
     params: Mapping | None = None,
     backend: str = "auto",
@@ -122,8 +132,19 @@ def measure_order(
         Initial data (exactly one of ``v0``, ``p0``).
     t_final : float
         Length of the time interval.
-    step_counts : sequence of int
-        Numbers of steps; at least two.
+    step_counts : sequence of int or "auto"
+        Numbers of steps; at least two. ``"auto"`` (needs ``reference``) probes
+        :math:`N = 2, \dots` (ratio :math:`10^{0.8/p}`) and keeps the runs whose errors
+        lie inside ``window``: above the round-off floor and the reference's
+        accuracy, below the pre-asymptotic range; the order is fitted on the
+        three finest of them.
+    window : (float, float)
+        Error window of the ``"auto"`` mode.
+    norm : {"final", "max"}
+        ``"final"``: max-norm error at :math:`t_0 + T`. ``"max"``: the largest
+        error over all step points (needs a callable ``reference`` that accepts
+        an array of times and returns shape (len(t), n)); smoother in :math:`h`,
+        as single-time errors of oscillatory problems can pass through zero.
     reference : callable, array or None
         Exact final position: a function ``t -> q(t)`` or the array
         :math:`q(t_0 + T)`. ``None`` computes a reference with the same method
@@ -148,20 +169,35 @@ def measure_order(
     >>> round(result.order, 1)
     2.0
     """
-    counts = np.array(sorted(int(n) for n in step_counts), dtype=np.int64)
-    if counts.size < 2 or counts[0] < 1:
-        raise ValueError(f"step_counts needs at least two positive counts, got {list(step_counts)}")
+    auto = isinstance(step_counts, str)
+    if auto and step_counts != "auto":
+        raise ValueError(f"step_counts must be a sequence of ints or 'auto', got {step_counts!r}")
+    if auto and reference is None:
+        raise ValueError("step_counts='auto' needs a reference solution")
+    if not auto:
+        counts = np.array(sorted(int(n) for n in step_counts), dtype=np.int64)
+        if counts.size < 2 or counts[0] < 1:
+            raise ValueError(
+                f"step_counts needs at least two positive counts, got {list(step_counts)}"
+            )
     if not (np.isfinite(t_final) and t_final != 0):
         raise ValueError(f"t_final must be finite and nonzero, got {t_final}")
     if integrator is None:
         integrator = Integrator(system, method, backend=backend)
 
-    def final_position(n_steps: int) -> NDArray:
-        traj = integrator.integrate(
+    if norm not in ("final", "max"):
+        raise ValueError(f"norm must be 'final' or 'max', got {norm!r}")
+    if norm == "max" and not callable(reference):
+        raise ValueError("norm='max' needs a callable reference t -> q(t)")
+
+    def run(n_steps: int):
+        return integrator.integrate(
             q0, v0, p0, h=t_final / n_steps, n_steps=n_steps, t0=t0, params=params,
-            save_every=n_steps,
+            save_every=1 if norm == "max" else n_steps,
         )
-        return traj.q[-1]
+
+    def final_position(n_steps: int) -> NDArray:
+        return run(n_steps).q[-1]
 
     if reference is None:
         fine, finer = final_position(2 * counts[-1]), final_position(4 * counts[-1])
@@ -173,10 +209,22 @@ def measure_order(
     if ref.shape != (system.n,):
         raise ValueError(f"reference must give shape ({system.n},), got {ref.shape}")
 
-    errors = np.array([np.max(np.abs(final_position(int(n)) - ref)) for n in counts])
+    def error(n_steps: int) -> float:
+        if norm == "max":
+            traj = run(n_steps)
+            exact = np.asarray(reference(traj.t), dtype=float).reshape(traj.q.shape)
+            return float(np.max(np.abs(traj.q - exact)))
+        return float(np.max(np.abs(final_position(n_steps) - ref)))
+
+    if auto:
+        counts, errors = _probe_window(error, window, method.order)
+    else:
+        errors = np.array([error(int(n)) for n in counts])
     step_sizes = t_final / counts
     floor = 1e3 * counts * _EPS * (1.0 + np.max(np.abs(ref)))
-    order, mask = fit_order(step_sizes, errors, floor)
+    if auto:
+        floor = np.maximum(floor, window[0])
+    order, mask = fit_order(step_sizes, errors, floor, finest=3 if auto else None)
     if np.isnan(order):
         warnings.warn(
             "fewer than two step counts are in the asymptotic range (errors at the round-off "
@@ -193,3 +241,39 @@ def measure_order(
         mask=mask,
         reference=ref,
     )
+
+
+def _probe_window(
+    error: Callable[[int], float],
+    window: tuple[float, float],
+    order: int,
+    max_points: int = 6,
+    max_steps: int = 20000,
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Step counts whose errors fall inside ``window`` (plus the first one below it).
+
+    Counts grow from 2 by the ratio :math:`10^{0.8/p}` (about 0.8 decades of
+    error per probe at order :math:`p`), so that several points land in a
+    six-decade window at any order.
+    """
+    low, high = window
+    ratio = max(1.1, 10.0 ** (0.8 / order))
+    counts: list[int] = []
+    errors: list[float] = []
+    n = 2
+    while n <= max_steps and len(counts) < max_points:
+        try:
+            e = error(n)
+        except ConvergenceError:
+            e = np.inf
+        if e < high:
+            counts.append(n)
+            errors.append(e)
+        if e < low:
+            break
+        n = max(n + 1, int(np.ceil(ratio * n)))
+    if len(counts) < 2:
+        raise RuntimeError(
+            f"could not find two step counts with errors inside {window} (tried up to {n} steps)"
+        )
+    return np.array(counts, dtype=np.int64), np.array(errors)

@@ -1,0 +1,34 @@
+"""Shared fixtures: one method registry that every method-parametrised test uses."""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import pytest
+
+import galerkin_vi as gvi
+
+os.environ.setdefault("GALERKIN_VI_CACHE_DIR", os.path.join(os.getcwd(), ".gvi-test-cache"))
+
+
+def method_registry(max_degree: int = 6) -> list[gvi.Galerkin]:
+    """Lobatto s+1, Gauss s, Lobatto s+2, Gauss s+1 and Lobatto s (order 2s-2), s = 1..max."""
+    methods = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", gvi.OrderReductionWarning)
+        for s in range(1, max_degree + 1):
+            methods += [
+                gvi.Galerkin(s, gvi.gauss_lobatto(s + 1)),
+                gvi.Galerkin(s, gvi.gauss_legendre(s)),
+                gvi.Galerkin(s, gvi.gauss_lobatto(s + 2)),
+                gvi.Galerkin(s, gvi.gauss_legendre(s + 1)),
+            ]
+            if s >= 2:
+                methods.append(gvi.Galerkin(s, gvi.gauss_lobatto(s)))
+    return methods
+
+
+@pytest.fixture(scope="session")
+def methods() -> list[gvi.Galerkin]:
+    return method_registry()
