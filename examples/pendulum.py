@@ -101,7 +101,12 @@ def main() -> None:
         # largest step count, Richardson-extrapolated with the predicted order.
         counts = STEP_COUNTS.get(degree, STEP_COUNTS_HIGH)
         result = gvi.measure_order(
-            system, method, Q0, v0=V0, t_final=T_ORDER, step_counts=counts,
+            system,
+            method,
+            Q0,
+            v0=V0,
+            t_final=T_ORDER,
+            step_counts=counts,
             integrator=integrator,
         )
         print(

@@ -50,6 +50,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from .quadrature import _require_int, gauss_lobatto, gauss_lobatto_mp
 
+# 1/_TINY is the largest finite float64, so 1/(x - d) is finite whenever |x - d| >= _TINY.
+_TINY = 1.0 / np.finfo(np.float64).max
+
 __all__ = [
     "LagrangeBasis",
     "equidistant_control_nodes",
@@ -142,6 +145,7 @@ class LagrangeBasis:
     _differentiation_matrix: NDArray[np.float64] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
+        """Validate the nodes; compute the barycentric weights and differentiation matrix."""
         nodes = _validate_nodes(self.nodes)
         diff = nodes[:, None] - nodes[None, :]
         np.fill_diagonal(diff, 1.0)
@@ -212,7 +216,7 @@ class LagrangeBasis:
         return self._evaluate(_as_points(x), with_derivatives=True)[1]
 
     def differentiation_matrix(self) -> NDArray[np.float64]:
-        r"""Derivatives at the nodes, :math:`D_{j\nu} = \ell_\nu'(d_j)`.
+        r"""Return the derivatives at the nodes, :math:`D_{j\nu} = \ell_\nu'(d_j)`.
 
         .. math::
 
@@ -234,41 +238,26 @@ class LagrangeBasis:
         """Values (and derivatives) at validated points ``x``; see the module docstring."""
         d, w = self.nodes, self.barycentric_weights
         diff = x[:, None] - d[None, :]
-        exact = diff == 0.0
-        at_node = exact.any(axis=1)
+        # Nodes, and points so close to one (< 1/realmax ~ 5.6e-309) that 1/(x - d) would
+        # overflow: to double precision their values and derivatives are those at the node.
+        at_node = np.any(np.abs(diff) < _TINY, axis=1)
+        inside = ~at_node & (x > d[0]) & (x < d[-1])
+        outside = ~at_node & ~inside
         vals = np.empty_like(diff)
-        ders = np.empty_like(diff) if with_derivatives else None
-
+        if np.any(inside):
+            # Second form; weights scaled by max |w| (it cancels) so the terms cannot overflow.
+            terms = (w / np.max(np.abs(w))) / diff[inside]
+            vals[inside] = terms / terms.sum(axis=1, keepdims=True)
+        if np.any(outside):
+            vals[outside] = w * _exclusive_products(diff[outside])
+        nearest = np.argmin(np.abs(diff[at_node]), axis=1)
+        vals[at_node] = np.eye(d.size)[nearest]
+        if not with_derivatives:
+            return vals, None
+        ders = np.empty_like(diff)
         off = ~at_node
-        if np.any(off):
-            delta = diff[off]
-            inside = (x[off] > d[0]) & (x[off] < d[-1])
-            with np.errstate(over="ignore", invalid="ignore", divide="ignore", under="ignore"):
-                inv = 1.0 / delta
-                terms = w * inv
-                v = np.where(
-                    inside[:, None],
-                    terms / terms.sum(axis=1, keepdims=True),
-                    w * _exclusive_products(delta),
-                )
-                dv = v * _exclusive_sums(inv) if with_derivatives else v
-            # A point within ~1e-290 of a node overflows 1/(x - d); to double precision its
-            # values and derivatives are those at the node, so treat it as the node.
-            bad = ~(np.all(np.isfinite(v), axis=1) & np.all(np.isfinite(dv), axis=1))
-            if np.any(bad):
-                rows = np.flatnonzero(off)[bad]
-                exact[rows, np.argmin(np.abs(diff[rows]), axis=1)] = True
-                at_node[rows] = True
-                off[rows] = False
-                v, dv = v[~bad], dv[~bad]
-            vals[off] = v
-            if ders is not None:
-                ders[off] = dv
-
-        if np.any(at_node):
-            vals[at_node] = exact[at_node]
-            if ders is not None:
-                ders[at_node] = self._differentiation_matrix[np.argmax(exact[at_node], axis=1)]
+        ders[off] = vals[off] * _exclusive_sums(1.0 / diff[off])
+        ders[at_node] = self._differentiation_matrix[nearest]
         return vals, ders
 
 

@@ -6,6 +6,7 @@ import warnings
 from dataclasses import dataclass
 from functools import cached_property
 
+import mpmath
 import numpy as np
 from numpy.typing import NDArray
 
@@ -196,7 +197,9 @@ class Galerkin:
         rule_mp = gauss_lobatto_mp if q.family == "gauss_lobatto" else gauss_legendre_mp
         c_mp, b_mp = rule_mp(q.npoints, _TABLE_DIGITS)
         Phi, D = lagrange_tables(d_mp, c_mp, _TABLE_DIGITS)
-        E, _ = lagrange_tables(d_mp, [1 + x for x in d_mp], _TABLE_DIGITS)
+        with mpmath.workdps(_TABLE_DIGITS):
+            shifted = [1 + x for x in d_mp]
+        E, _ = lagrange_tables(d_mp, shifted, _TABLE_DIGITS)
         return MethodTables(
             b=np.array([float(x) for x in b_mp]),
             c=np.array([float(x) for x in c_mp]),

@@ -1,17 +1,17 @@
-"""Gauss–Legendre and Gauss–Lobatto quadrature rules on :math:`[0, 1]`.
+r"""Gauss–Legendre and Gauss–Lobatto quadrature rules on :math:`[0, 1]`.
 
-A rule with nodes :math:`c_i` and weights :math:`b_i`, :math:`i = 1, \\dots, m`, approximates
+A rule with nodes :math:`c_i` and weights :math:`b_i`, :math:`i = 1, \dots, m`, approximates
 
 .. math::
 
-    \\int_0^1 f(\\tau)\\,\\mathrm{d}\\tau \\approx \\sum_{i=1}^{m} b_i f(c_i).
+    \int_0^1 f(\tau)\,\mathrm{d}\tau \approx \sum_{i=1}^{m} b_i f(c_i).
 
 Nodes and weights are computed with Newton's method on the three-term Legendre recurrence in
 extended precision (mpmath, 40 significant digits plus guard digits), mapped from
 :math:`[-1, 1]` to :math:`[0, 1]` by :math:`c = (1 + x)/2`, :math:`b = w/2`, and rounded to
-float64 once.  Only the upper half :math:`c_i \\ge 1/2` is rounded; the lower half is its exact
+float64 once.  Only the upper half :math:`c_i \ge 1/2` is rounded; the lower half is its exact
 reflection, so :math:`c_{m+1-i} = 1 - c_i` and :math:`b_{m+1-i} = b_i` hold exactly in floating
-point (for :math:`c \\in [1/2, 1]`, :math:`1 - c` is exact by Sterbenz's lemma).
+point (for :math:`c \in [1/2, 1]`, :math:`1 - c` is exact by Sterbenz's lemma).
 
 The extended-precision values are public too (:func:`gauss_legendre_mp`,
 :func:`gauss_lobatto_mp`): method tables built from them in mpmath and rounded once are more
@@ -130,9 +130,20 @@ class QuadratureRule:
     npoints : int
         Number of points :math:`m`.
 
+    Raises
+    ------
+    ValueError
+        If the family is unknown, the arrays are not one-dimensional of equal length, a node
+        lies outside :math:`[0, 1]` or the nodes are not increasing, a weight is not positive,
+        the weights do not sum to 1 (to 1e-12), or ``degree`` does not match the family.
+    TypeError
+        If ``degree`` is not an int.
+
     Notes
     -----
     Equality and hashing are by ``(family, npoints)``: a family and a size determine the rule.
+    The constructor does not check that the nodes are the family's own, so build rules with
+    the two factory functions.
     """
 
     family: str
@@ -141,6 +152,7 @@ class QuadratureRule:
     degree: int
 
     def __post_init__(self) -> None:
+        """Validate the fields and store read-only float64 copies of the arrays."""
         if self.family not in _FAMILIES:
             raise ValueError(f"family must be one of {sorted(_FAMILIES)}, got {self.family!r}")
         nodes = np.array(self.nodes, dtype=np.float64)
@@ -160,14 +172,16 @@ class QuadratureRule:
             raise ValueError("nodes must be strictly increasing and lie in [0, 1]")
         if np.any(weights <= 0.0) or abs(math.fsum(weights.tolist()) - 1.0) > 1e-12:
             raise ValueError("weights must be positive and sum to 1")
-        if self.degree != degree_of(m):
+        degree = _require_int(self.degree, "degree", -1)
+        if degree != degree_of(m):
             raise ValueError(
-                f"a {m}-point {self.family} rule has degree {degree_of(m)}, got {self.degree}"
+                f"a {m}-point {self.family} rule has degree {degree_of(m)}, got {degree}"
             )
         nodes.setflags(write=False)
         weights.setflags(write=False)
         object.__setattr__(self, "nodes", nodes)
         object.__setattr__(self, "weights", weights)
+        object.__setattr__(self, "degree", degree)
 
     @property
     def order(self) -> int:
@@ -180,14 +194,17 @@ class QuadratureRule:
         return int(self.nodes.size)
 
     def __eq__(self, other: object) -> bool:
+        """Compare by ``(family, npoints)``."""
         if not isinstance(other, QuadratureRule):
             return NotImplemented
         return (self.family, self.npoints) == (other.family, other.npoints)
 
     def __hash__(self) -> int:
+        """Hash of ``(family, npoints)``."""
         return hash((self.family, self.npoints))
 
     def __repr__(self) -> str:
+        """Return the constructor call, e.g. ``gauss_lobatto(4)``."""
         return f"{self.family}({self.npoints})"
 
 
@@ -442,7 +459,7 @@ def _gauss_lobatto_cached(m: int) -> QuadratureRule:
 
 
 def gauss_legendre(m: int) -> QuadratureRule:
-    r"""The :math:`m`-point Gauss–Legendre rule on :math:`[0, 1]`, exact to degree :math:`2m-1`.
+    r"""Return the :math:`m`-point Gauss–Legendre rule on :math:`[0, 1]` (exact to degree 2m-1).
 
     Nodes and weights are those of :func:`gauss_legendre_mp` at 40 digits, rounded to float64
     once (upper half rounded, lower half reflected exactly).
@@ -475,7 +492,7 @@ def gauss_legendre(m: int) -> QuadratureRule:
 
 
 def gauss_lobatto(m: int) -> QuadratureRule:
-    r"""The :math:`m`-point Gauss–Lobatto rule on :math:`[0, 1]`, exact to degree :math:`2m-3`.
+    r"""Return the :math:`m`-point Gauss–Lobatto rule on :math:`[0, 1]` (exact to degree 2m-3).
 
     The end points are exactly 0.0 and 1.0.  Interior nodes and all weights are those of
     :func:`gauss_lobatto_mp` at 40 digits, rounded to float64 once (upper half rounded, lower

@@ -89,7 +89,7 @@ def test_partition_of_unity(kind: str, degree: int) -> None:
     for x in (inside, outside):
         values, derivs = basis.values(x), basis.derivatives(x)
         # Relative to sum |.| because extrapolated values reach 1e21 at degree 30, x = 2.
-        # Measured max 4.7e-16 (values) and 4.4e-16 (derivatives) over these node sets.
+        # Measured max 4.6e-16 (values) and 4.3e-16 (derivatives) over these node sets.
         assert np.all(np.abs(values.sum(axis=1) - 1) <= 2e-15 * np.abs(values).sum(axis=1))
         assert np.all(np.abs(derivs.sum(axis=1)) <= 2e-15 * np.abs(derivs).sum(axis=1))
     dmat = basis.differentiation_matrix()  # measured 7.3e-17
@@ -143,8 +143,8 @@ def test_high_degree_against_extended_precision(kind: str, degree: int) -> None:
         ref = [reference(nodes, xi) for xi in x]
         ref_values = np.array([r[0] for r in ref])
         ref_derivs = np.array([r[1] for r in ref])
-        # Row-relative, measured max over degrees 10, 20, 30: values 4.5e-16 inside and
-        # 7.4e-16 outside, derivatives 8.2e-16 and 7.4e-16 (the brief asks for ~1e-12).
+        # Row-relative, measured max over degrees 10, 20, 30: values 4.4e-16 inside and
+        # 7.4e-16 outside, derivatives 1.0e-15 and 7.4e-16 (the brief asks for ~1e-12).
         assert row_relative_error(basis.values(x), ref_values) <= 1e-14
         assert row_relative_error(basis.derivatives(x), ref_derivs) <= 1e-14
     ref_dmat = np.array([reference(nodes, d)[1] for d in nodes])
@@ -167,19 +167,22 @@ def test_barycentric_weights_match_definition(degree: int) -> None:
 
 def test_points_extremely_close_to_a_node_are_treated_as_the_node() -> None:
     basis = LagrangeBasis(lobatto_control_nodes(6))
-    tiny = 5e-324  # 1 / tiny overflows
-    for x in (tiny, -tiny):  # inside (barycentric branch) and outside (product branch)
+    for x in (5e-324, -5e-324, 1e-309):  # 1 / x overflows; inside and outside [0, 1]
         values, derivs = basis.values(x), basis.derivatives(x)
-        assert np.all(np.isfinite(values)) and np.all(np.isfinite(derivs))
-        np.testing.assert_allclose(values[0], np.eye(7)[0], rtol=0, atol=2.3e-16)
-        np.testing.assert_allclose(derivs[0], basis.differentiation_matrix()[0], rtol=1e-15)
+        np.testing.assert_array_equal(values[0], np.eye(7)[0])
+        np.testing.assert_array_equal(derivs[0], basis.differentiation_matrix()[0])
+    # 1e-300 is still evaluated by the formulas, and agrees with the node to rounding.
+    np.testing.assert_allclose(basis.values(1e-300)[0], np.eye(7)[0], rtol=0, atol=1e-16)
+    np.testing.assert_allclose(
+        basis.derivatives(-1e-300)[0], basis.differentiation_matrix()[0], rtol=1e-15
+    )
 
 
 def test_linear_basis_closed_form() -> None:
     basis = LagrangeBasis([0.0, 1.0])
-    x = np.array([-1.0, 0.0, 0.25, 1.0, 3.0])
+    x = np.array([-1e100, -1.0, 0.0, 0.25, 1.0, 3.0, 1e100])  # far extrapolation too
     np.testing.assert_array_equal(basis.values(x), np.stack([1 - x, x], axis=1))
-    np.testing.assert_array_equal(basis.derivatives(x), np.tile([-1.0, 1.0], (5, 1)))
+    np.testing.assert_array_equal(basis.derivatives(x), np.tile([-1.0, 1.0], (x.size, 1)))
     assert basis.degree == 1
 
 
@@ -252,7 +255,7 @@ def test_control_node_families(degree: int) -> None:
     gll_mp = lobatto_control_nodes_mp(degree)
     assert gll_mp == gauss_lobatto_mp(degree + 1)[0]
     # The float rule rounds the upper half and reflects it, so the lower half may differ from
-    # a direct rounding by one ulp of 1/2 (measured: at most 5.6e-17).
+    # a direct rounding by one ulp (measured: at most 5.6e-17).
     assert np.abs(gll - np.array([float(v) for v in gll_mp])).max() <= 1.2e-16
 
 
@@ -283,7 +286,7 @@ def test_lagrange_tables_match_float_barycentric(kind: str, degree: int) -> None
         [gauss_legendre(degree).nodes, gauss_legendre(degree + 3).nodes, 1.0 + nodes]
     )
     # Same float64 inputs (converted exactly), so only evaluation error differs:
-    # measured max 9.2e-16 (values) and 8.6e-16 (derivatives), row-relative.
+    # measured max 9.2e-16 (values) and 1.0e-15 (derivatives), row-relative.
     phi, der = lagrange_tables(list(nodes), list(points))
     assert phi.shape == der.shape == (points.size, degree + 1)
     assert phi.dtype == der.dtype == np.float64
@@ -374,13 +377,16 @@ def test_random_nodes_properties(nodes: np.ndarray, data) -> None:
     )
     values, derivs = basis.values(x), basis.derivatives(x)
     assert np.all(np.isfinite(values)) and np.all(np.isfinite(derivs))
-    # Partition of unity relative to sum |.| (these node sets can be badly spaced).
+    # Relative to sum |.| (these node sets can be badly spaced); over 3000 random node sets
+    # the measured max is 4.4e-16 for the values and 1.5e-15 for the derivatives.
     assert np.all(np.abs(values.sum(axis=1) - 1) <= 1e-14 * np.abs(values).sum(axis=1))
     assert np.all(np.abs(derivs.sum(axis=1)) <= 1e-13 * (1 + np.abs(derivs).sum(axis=1)))
-    # Reproduces a random polynomial of degree s; tolerance scaled by sum |ell_nu p(d_nu)|.
+    # Reproduces a random polynomial of degree s (a Chebyshev series on the node interval, so
+    # that NumPy evaluates it accurately); tolerance scaled by 1 + sum |ell_nu| |p(d_nu)|,
+    # measured max 8.5e-15 (values) and 9.8e-15 (derivatives) over 3000 random node sets.
     coef = np.array(data.draw(st.lists(st.floats(-1, 1), min_size=s + 1, max_size=s + 1)))
-    p = np.polynomial.Polynomial(coef)
+    p = np.polynomial.Chebyshev(coef, domain=[nodes[0], nodes[-1]])
     fd = p(nodes)
     assert np.all(np.abs(values @ fd - p(x)) <= 1e-13 * (1 + np.abs(values) @ np.abs(fd)))
     dp = p.deriv()(x)
-    assert np.all(np.abs(derivs @ fd - dp) <= 1e-12 * (1 + np.abs(derivs) @ np.abs(fd)))
+    assert np.all(np.abs(derivs @ fd - dp) <= 1e-13 * (1 + np.abs(derivs) @ np.abs(fd)))

@@ -251,6 +251,12 @@ def test_constructor_validation(args: tuple, match: str) -> None:
         QuadratureRule(*args)
 
 
+def test_constructor_degree_type() -> None:
+    with pytest.raises(TypeError, match="degree must be an int"):
+        QuadratureRule("gauss_legendre", [0.5], [1.0], 1.0)
+    assert type(QuadratureRule("gauss_legendre", [0.5], [1.0], np.int64(1)).degree) is int
+
+
 @pytest.mark.parametrize(
     "func", [gauss_legendre, gauss_lobatto, gauss_legendre_mp, gauss_lobatto_mp]
 )
@@ -291,7 +297,7 @@ def test_mp_results_are_fresh_lists_of_mpf(func) -> None:
 
 @pytest.mark.parametrize("dps", [20, 60])
 def test_mp_rule_has_the_requested_precision(dps: int) -> None:
-    nodes, weights = gauss_legendre_mp(5, dps)
+    nodes, _ = gauss_legendre_mp(5, dps)
     with mpmath.workdps(dps + 20):
         ref = sorted((1 + x) / 2 for x in mpmath.polyroots([63, 0, -70, 0, 15, 0], maxsteps=200))
         err = max(abs(c - r) for c, r in zip(nodes, ref, strict=True))

@@ -5,6 +5,8 @@ No integrator is built here, so nothing is compiled.
 
 from __future__ import annotations
 
+from functools import cache
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -20,10 +22,12 @@ a, b, va, vb = sp.symbols("a b va vb")
 k = sp.symbols("k")
 
 
+@cache
 def pendulum() -> gvi.LagrangianSystem:
     return gvi.LagrangianSystem(vth**2 / 2 + g * sp.cos(th), [th], [vth], params={g: 9.81})
 
 
+@cache
 def double_pendulum() -> gvi.LagrangianSystem:
     # theory.md §9: M(q) = [[2, cos(a - b)], [cos(a - b), 1]] is not constant
     L = (2 * va**2 + vb**2 + 2 * sp.cos(a - b) * va * vb) / 2 + 2 * sp.cos(a) + sp.cos(b)
@@ -37,6 +41,7 @@ def _charged_particle_fields():
     return A, phi
 
 
+@cache
 def charged_particle() -> gvi.LagrangianSystem:
     A, phi = _charged_particle_fields()
     vel = sp.Matrix([vx, vy, vz])
@@ -44,20 +49,24 @@ def charged_particle() -> gvi.LagrangianSystem:
     return gvi.LagrangianSystem(L, [x, y, z], [vx, vy, vz])
 
 
+@cache
 def driven_oscillator() -> gvi.LagrangianSystem:
     return gvi.LagrangianSystem(vx**2 / 2 - x**2 / 2 + x * sp.cos(2 * t), [x], [vx], t=t)
 
 
+@cache
 def caldirola_kanai() -> gvi.LagrangianSystem:
     # damped oscillator as a time-dependent Lagrangian: the mass exp(t/5) depends on t
     return gvi.LagrangianSystem(sp.exp(t / 5) * (vx**2 - k * x**2) / 2, [x], [vx], t=t,
                                 params={k: 2.0})
 
 
+@cache
 def relativistic() -> gvi.LagrangianSystem:
     return gvi.LagrangianSystem(-sp.sqrt(1 - vx**2) - k * x**2 / 2, [x], [vx], params={k: 1.5})
 
 
+@cache
 def harmonic_2d() -> gvi.LagrangianSystem:
     return gvi.LagrangianSystem(
         (vx**2 + vy**2) / 2 - k * (x**2 + y**2) / 2, [x, y], [vx, vy], params={k: 4.0}
@@ -177,7 +186,7 @@ def test_legendre_round_trip_double_pendulum(q, v):
     system = double_pendulum()
     q, v = np.array(q), np.array(v)
     p = system.legendre(q, v)
-    np.testing.assert_allclose(system.inverse_legendre(q, p), v, rtol=0, atol=1e-13)  # ~4e-16
+    np.testing.assert_allclose(system.inverse_legendre(q, p), v, rtol=0, atol=1e-13)  # max 1.3e-15 measured
 
 
 @settings(max_examples=25, deadline=None)
@@ -189,7 +198,7 @@ def test_legendre_round_trip_charged_particle(q, v):
     system = charged_particle()
     q, v = np.array(q), np.array(v)
     p = system.legendre(q, v)
-    np.testing.assert_allclose(system.inverse_legendre(q, p), v, rtol=0, atol=1e-13)  # ~4e-16
+    np.testing.assert_allclose(system.inverse_legendre(q, p), v, rtol=0, atol=1e-13)  # max 8.9e-16
 
 
 def test_legendre_round_trip_time_dependent_mass_uses_t():
@@ -208,9 +217,10 @@ def test_relativistic_legendre_round_trip_moderate_speeds():
     q = np.full_like(v, 0.4)
     p = system.legendre(q, v)
     np.testing.assert_allclose(p, v / np.sqrt(1 - v**2), rtol=1e-15, atol=1e-15)
-    np.testing.assert_allclose(system.inverse_legendre(q, p), v, rtol=0, atol=1e-14)  # ~1e-16
+    np.testing.assert_allclose(system.inverse_legendre(q, p), v, rtol=0, atol=1e-14)  # measured 0
 
 
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
 @pytest.mark.xfail(
     strict=True,
     reason="library bug: inverse_legendre starts Newton at v=0 without a safeguard; for "
@@ -246,7 +256,7 @@ def test_hamiltonian_pendulum_closed_form():
     H = system.hamiltonian(q, p)
     assert H.shape == (11,)
     np.testing.assert_allclose(H, p[:, 0] ** 2 / 2 - 9.81 * np.cos(q[:, 0]), rtol=1e-15,
-                               atol=1e-14)  # measured 0
+                               atol=1e-14)  # measured 8.9e-16
 
 
 def test_hamiltonian_double_pendulum_closed_form():
@@ -257,7 +267,7 @@ def test_hamiltonian_double_pendulum_closed_form():
     Minv_p = np.linalg.solve(_closed_form_mass(q), p[..., None])[..., 0]
     expected = 0.5 * np.sum(p * Minv_p, axis=-1) - 2 * np.cos(q[:, 0]) - np.cos(q[:, 1])
     np.testing.assert_allclose(system.hamiltonian(q, p), expected, rtol=1e-13,
-                               atol=1e-13)  # measured 1.8e-15
+                               atol=1e-13)  # measured 5.3e-15 (|H| <= 14)
 
 
 def test_hamiltonian_charged_particle_closed_form():
@@ -288,7 +298,7 @@ def test_hamiltonian_relativistic_closed_form():
     p = np.linspace(-0.9, 0.9, 7)[:, None]  # |p| < 1: see the xfail above for |p| > 1
     q = np.linspace(-1, 1, 7)[:, None]
     expected = np.sqrt(1 + p[:, 0] ** 2) + 1.5 * q[:, 0] ** 2 / 2
-    np.testing.assert_allclose(system.hamiltonian(q, p), expected, rtol=1e-14)  # ~2e-16
+    np.testing.assert_allclose(system.hamiltonian(q, p), expected, rtol=1e-14)  # measured 2.2e-16
 
 
 def test_hamiltonian_params_override():

@@ -1,0 +1,287 @@
+"""Code generation (spec, signature, rendered source) and the on-disk kernel cache.
+
+Every test points ``GALERKIN_VI_CACHE_DIR`` at its own ``tmp_path``. One Lagrangian (a
+Duffing oscillator used nowhere else) is compiled, once, for the corrupt-entry test.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import galerkin_vi as gvi
+from galerkin_vi import codegen
+from galerkin_vi.backends import cache
+from galerkin_vi.backends.numba import numba_version
+
+x, y, vx, vy, a, b = sp.symbols("x y vx vy a b")
+th1, th2, w1, w2 = sp.symbols("theta1 theta2 omega1 omega2")
+
+
+@pytest.fixture(autouse=True)
+def cache_dir(tmp_path, monkeypatch):
+    monkeypatch.setenv("GALERKIN_VI_CACHE_DIR", str(tmp_path))
+    return tmp_path
+
+
+def double_pendulum(q=(x, y), v=(vx, vy)):
+    (p, r), (vp, vr) = q, v
+    L = (2 * vp**2 + vr**2 + 2 * sp.cos(p - r) * vp * vr) / 2 + 2 * sp.cos(p) + sp.cos(r)
+    return gvi.LagrangianSystem(L, list(q), list(v))
+
+
+def duffing(alpha=1.0, beta=0.5):
+    return gvi.LagrangianSystem(vx**2 / 2 - a * x**2 / 2 - b * x**4 / 4, [x], [vx],
+                                params={a: alpha, b: beta})
+
+
+def _key(system, backend="numba"):
+    return codegen.signature(codegen.kernel_spec(system), backend, numba_version() or "none")
+
+
+# ------------------------------------------------------------------ cache root
+def test_cache_root_follows_the_environment(cache_dir, monkeypatch):
+    assert cache.cache_root() == cache_dir / f"v{codegen.GENERATOR_VERSION}"
+    path = cache.entry_path("ab" * 32)
+    assert path.parent == cache.cache_root()
+    assert path.name.startswith("gvi_") and path.suffix == ".py"
+    monkeypatch.delenv("GALERKIN_VI_CACHE_DIR")
+    assert cache_dir not in cache.cache_root().parents  # read at call time, not import time
+
+
+# ------------------------------------------------------------------- signature
+def test_signature_is_stable_for_equal_systems():
+    first = _key(double_pendulum())
+    again = _key(double_pendulum())
+    renamed = _key(double_pendulum((th1, th2), (w1, w2)))  # symbol names do not matter
+    assert first == again == renamed
+    assert len(first) == 64 and int(first, 16) >= 0
+
+
+def test_signature_ignores_parameter_values():
+    # compile once per system: parameter values are run-time data
+    assert _key(duffing(1.0, 0.5)) == _key(duffing(-3.0, 7.0))
+
+
+@pytest.mark.parametrize(
+    "other",
+    [
+        lambda: duffing(),  # a different Lagrangian
+        lambda: gvi.LagrangianSystem(
+            (2 * vx**2 + vy**2 + 2 * sp.cos(x - y) * vx * vy) / 2 + 2 * sp.cos(x) + 2 * sp.cos(y),
+            [x, y], [vx, vy],
+        ),  # one coefficient changed
+        lambda: double_pendulum((y, x), (vy, vx)),  # coordinates swapped
+    ],
+)
+def test_signature_differs_for_different_lagrangians(other):
+    assert _key(other()) != _key(double_pendulum())
+
+
+def test_signature_depends_on_backend_and_version():
+    spec = codegen.kernel_spec(double_pendulum())
+    keys = {
+        codegen.signature(spec, "numba", "0.60.0"),
+        codegen.signature(spec, "numba", "0.61.0"),
+        codegen.signature(spec, "source", ""),
+    }
+    assert len(keys) == 3
+
+
+# ------------------------------------------------------------------------ spec
+def test_spec_drops_identically_zero_entries():
+    spec = codegen.kernel_spec(duffing())
+    slots = [slot for slot, _ in spec.hessian_entries]
+    assert not spec.has_Lqv
+    assert not any(slot.startswith("Lqv") for slot in slots)  # L_qv == 0 is skipped
+    assert "Lvv[0, 0]" in slots and "Lqq[0, 0]" in slots
+    assert spec.autonomous and spec.n == 1 and spec.n_params == 2
+
+    coupled = codegen.kernel_spec(double_pendulum())
+    assert coupled.has_Lqv
+    coupled_slots = [slot for slot, _ in coupled.hessian_entries]
+    assert "Lvv[1, 1]" in coupled_slots
+    assert "Lqv[0, 0]" in coupled_slots and "Lqv[0, 1]" in coupled_slots
+
+
+# --------------------------------------------------------------------- render
+def _load_uncompiled(source):
+    namespace: dict = {}
+    exec(compile(source, "<generated>", "exec"), namespace)
+    return namespace
+
+
+def test_render_module_is_valid_python_with_the_key_on_first_and_last_line():
+    system = double_pendulum()
+    key = _key(system)
+    source = codegen.render_module(codegen.kernel_spec(system), key)
+    compile(source, "<generated>", "exec")
+    lines = source.rstrip("\n").splitlines()
+    assert key in lines[0] and key in lines[-1]
+    assert "def point_hessian(t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv):" in source
+
+
+def test_rendered_point_functions_compute_the_derivatives():
+    # run the generated module without numba: every entry against the closed form
+    source = codegen.render_module(codegen.kernel_spec(double_pendulum()), "k",
+                                   decorator="(lambda f: f)")
+    ns = _load_uncompiled(source)
+    q, v = np.array([0.7, -0.4]), np.array([1.3, 0.2])
+    Lq, Lv = np.zeros(2), np.zeros(2)
+    Lqq, Lqv, Lvv = np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2))
+    ns["point_hessian"](0.0, q, v, np.zeros(0), Lq, Lv, Lqq, Lqv, Lvv)
+    s, c = np.sin(q[0] - q[1]), np.cos(q[0] - q[1])
+    vv = v[0] * v[1]
+    np.testing.assert_allclose(Lq, [-s * vv - 2 * np.sin(q[0]), s * vv - np.sin(q[1])],
+                               rtol=1e-15, atol=1e-15)
+    np.testing.assert_allclose(Lv, [2 * v[0] + c * v[1], v[1] + c * v[0]], rtol=1e-15)
+    np.testing.assert_allclose(
+        Lqq, [[-c * vv - 2 * np.cos(q[0]), c * vv], [c * vv, -c * vv - np.cos(q[1])]],
+        rtol=1e-15, atol=1e-15,
+    )
+    np.testing.assert_allclose(Lqv, [[-s * v[1], -s * v[0]], [s * v[1], s * v[0]]], rtol=1e-15)
+    np.testing.assert_allclose(Lvv, [[2, c], [c, 1]], rtol=1e-15)
+    L = ns["lagrangian"](0.0, q, v, np.zeros(0))
+    expected = (2 * v[0] ** 2 + v[1] ** 2 + 2 * c * vv) / 2 + 2 * np.cos(q[0]) + np.cos(q[1])
+    assert L == pytest.approx(expected, rel=1e-15)
+    Lq2, Lv2 = np.zeros(2), np.zeros(2)
+    ns["point_gradient"](0.0, q, v, np.zeros(0), Lq2, Lv2)
+    np.testing.assert_array_equal(Lq2, Lq)
+    np.testing.assert_array_equal(Lv2, Lv)
+
+
+def test_rendered_parameters_are_read_from_prm():
+    ns = _load_uncompiled(
+        codegen.render_module(codegen.kernel_spec(duffing()), "k", decorator="(lambda f: f)")
+    )
+    Lq, Lv = np.zeros(1), np.zeros(1)
+    ns["point_gradient"](0.0, np.array([2.0]), np.array([0.5]), np.array([3.0, 0.25]), Lq, Lv)
+    assert Lq[0] == -3.0 * 2.0 - 0.25 * 8.0
+    assert Lv[0] == 0.5
+
+
+# ---------------------------------------------------------------------- cache
+def test_read_entry_rejects_missing_truncated_and_foreign_files():
+    system = double_pendulum()
+    key = _key(system)
+    source = codegen.render_module(codegen.kernel_spec(system), key)
+    assert cache.read_entry(key) is None  # missing
+    path = cache.entry_path(key)
+    path.parent.mkdir(parents=True)
+    path.write_text(source[: len(source) // 2])
+    assert cache.read_entry(key) is None  # truncated: no key on the last line
+    path.write_text(source.replace(key, "f" * 64))
+    assert cache.read_entry(key) is None  # another key's module under this name
+    path.write_bytes(b"\xff\xfe\x00garbage")
+    assert cache.read_entry(key) is None  # not text
+    path.write_text(source)
+    assert cache.read_entry(key) == source
+
+
+def test_write_entry_twice_keeps_the_first_file():
+    system = double_pendulum()
+    key = _key(system)
+    source = codegen.render_module(codegen.kernel_spec(system), key)
+    path = cache.write_entry(key, source)
+    assert path == cache.entry_path(key)
+    before = os.stat(path)
+    os.utime(path, ns=(before.st_atime_ns, before.st_mtime_ns - 10**9))  # make a rewrite visible
+    before = os.stat(path)
+    assert cache.write_entry(key, source) == path
+    after = os.stat(path)
+    assert after.st_mtime_ns == before.st_mtime_ns
+    assert after.st_ino == before.st_ino
+    assert path.read_text() == source
+    assert sorted(p.name for p in path.parent.iterdir()) == [path.name]  # no temporaries left
+
+
+def test_write_entry_replaces_a_corrupt_file():
+    system = double_pendulum()
+    key = _key(system)
+    source = codegen.render_module(codegen.kernel_spec(system), key)
+    path = cache.entry_path(key)
+    path.parent.mkdir(parents=True)
+    path.write_text(source[:100])
+    cache.write_entry(key, source)
+    assert cache.read_entry(key) == source
+    assert sorted(p.name for p in path.parent.iterdir()) == [path.name]
+
+
+def test_corrupt_entry_is_rebuilt_when_the_integrator_loads(monkeypatch):
+    system = duffing()
+    key = _key(system)
+    source = codegen.render_module(codegen.kernel_spec(system), key)
+    path = cache.entry_path(key)
+    path.parent.mkdir(parents=True)
+    path.write_text(source[: len(source) // 3])  # an interrupted write
+    assert cache.read_entry(key) is None
+    # make sure the module is imported from the cache, not reused from this process
+    monkeypatch.delitem(sys.modules, f"galerkin_vi_kernel_{key[:32]}", raising=False)
+
+    method = gvi.Galerkin(2)
+    compiled = gvi.Integrator(system, method, backend="numba")
+    traj = compiled.integrate([1.0], [0.0], h=0.1, n_steps=50)
+    assert cache.read_entry(key) == source  # rebuilt in place
+    assert compiled.source == source
+    reference = gvi.Integrator(system, method, backend="numpy").integrate([1.0], [0.0], h=0.1,
+                                                                          n_steps=50)
+    assert np.abs(traj.q - reference.q).max() <= 1e-13  # measured 4.4e-16
+    assert np.abs(traj.p - reference.p).max() <= 1e-13  # measured 6.7e-16
+    energy = traj.energy()
+    assert np.abs(energy - energy[0]).max() < 1e-4  # measured 1.5e-5: a sane Duffing orbit
+
+
+# ------------------------------------------------------- unsupported functions
+@pytest.fixture
+def bessel_system():
+    # besselj has no printer in the kernel language; SymPy differentiates it happily
+    return gvi.LagrangianSystem(vx**2 / 2 - sp.besselj(0, x), [x], [vx])
+
+
+def test_unsupported_function_fails_at_generation(bessel_system):
+    spec = codegen.kernel_spec(bessel_system)
+    with pytest.raises(NotImplementedError, match="besselj"):
+        codegen.render_module(spec, "k")
+
+
+def test_unsupported_function_fails_before_any_step_and_leaves_no_entry(bessel_system):
+    integrator = gvi.Integrator(bessel_system, gvi.Galerkin(1), backend="numba")
+    with pytest.raises(NotImplementedError, match="besselj"):
+        integrator.integrate([0.3], [0.0], h=0.1, n_steps=3)
+    assert cache.read_entry(_key(bessel_system)) is None
+    assert not cache.entry_path(_key(bessel_system)).exists()
+
+
+@pytest.mark.xfail(
+    strict=True,
+    raises=NameError,
+    reason="library bug: the numpy backend lambdifies with modules='numpy', which prints "
+    "besselj but cannot resolve it; the run fails with NameError inside the first step",
+)
+def test_unsupported_function_with_numpy_backend_fails_clearly(bessel_system):
+    integrator = gvi.Integrator(bessel_system, gvi.Galerkin(1), backend="numpy")
+    with pytest.raises((ValueError, TypeError, NotImplementedError), match="besselj"):
+        integrator.integrate([0.3], [0.0], h=0.1, n_steps=3)
+
+
+def test_undefined_function_fails_at_construction():
+    f = sp.Function("mystery")
+    with pytest.raises((ValueError, TypeError, NotImplementedError), match="mystery"):
+        gvi.LagrangianSystem(vx**2 / 2 - f(x), [x], [vx])
+
+
+@pytest.mark.xfail(
+    strict=True,
+    raises=NotImplementedError,
+    reason="library gap: an undefined function in L surfaces as SymPy's "
+    "PrintMethodNotImplementedError about 'Derivative' from lambdify, not as the ValueError "
+    "naming the bad input that DESIGN.md asks for",
+)
+def test_undefined_function_is_a_value_error_naming_it():
+    f = sp.Function("mystery")
+    with pytest.raises(ValueError, match=r"mystery\(x\)"):
+        gvi.LagrangianSystem(vx**2 / 2 - f(x), [x], [vx])
