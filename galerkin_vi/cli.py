@@ -47,9 +47,15 @@ def _verify(args: argparse.Namespace) -> int:
                     warnings.simplefilter("ignore", OrderReductionWarning)
                     method = Galerkin(s, rule)
                     result = measure_order(
-                        problem.system, method, problem.q0, problem.v0,
-                        t_final=problem.t_final, step_counts="auto",
-                        reference=problem.reference, params=problem.params, norm="max",
+                        problem.system,
+                        method,
+                        problem.q0,
+                        problem.v0,
+                        t_final=problem.t_final,
+                        step_counts="auto",
+                        reference=problem.reference,
+                        params=problem.params,
+                        norm="max",
                         window=(1e-12 if problem.exact is not None else 1e-10, 1e-4),
                     )
                 ok = result.mask.sum() >= 3 and abs(result.order - method.order) <= ORDER_TOLERANCE
@@ -61,8 +67,10 @@ def _verify(args: argparse.Namespace) -> int:
                     flush=True,
                 )
     elapsed = time.perf_counter() - start
-    print(f"\n{failures} of {len(args.problems) * len(args.degrees) * len(args.families)} "
-          f"measured orders miss the prediction by more than {ORDER_TOLERANCE} ({elapsed:.1f} s)")
+    print(
+        f"\n{failures} of {len(args.problems) * len(args.degrees) * len(args.families)} "
+        f"measured orders miss the prediction by more than {ORDER_TOLERANCE} ({elapsed:.1f} s)"
+    )
     return 1 if failures else 0
 
 

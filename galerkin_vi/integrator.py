@@ -212,17 +212,32 @@ class Integrator:
         args = (q0, p0_arr, v0_arr, t0, h, n_steps, int(save_every), prm)
         if self.backend == "numba":
             status, done, saved, worst, increment = self._kernels.integrate_kernel(
-                *args, tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation,
-                self.tol, self.maxiter, t_out, q_out, p_out, iterations,
+                *args,
+                tb.b,
+                tb.c,
+                tb.d,
+                tb.Phi,
+                tb.D,
+                tb.extrapolation,
+                self.tol,
+                self.maxiter,
+                t_out,
+                q_out,
+                p_out,
+                iterations,
             )
         else:
             status, done, saved, worst, increment = numpy_backend.integrate(
                 system, tb, *args, self.tol, self.maxiter, t_out, q_out, p_out, iterations
             )
         traj = Trajectory(
-            t=t_out[:saved], q=q_out[:saved], p=p_out[:saved],
+            t=t_out[:saved],
+            q=q_out[:saved],
+            p=p_out[:saved],
             newton_iterations=iterations[: done + (status != 0)],
-            max_residual=float(worst), system=system, params=prm,
+            max_residual=float(worst),
+            system=system,
+            params=prm,
         )
         if status != 0:
             t_fail = t0 + done * h
@@ -230,7 +245,10 @@ class Integrator:
                 f"step {done} (t = {t_fail:.6g}, h = {h:.3g}): {_STATUS_MESSAGES[int(status)]} "
                 f"(last increment {increment:.3g}); the trajectory up to the failing step is in "
                 ".partial. Try a smaller h.",
-                step=int(done), t=t_fail, residual=float(increment), partial=traj,
+                step=int(done),
+                t=t_fail,
+                residual=float(increment),
+                partial=traj,
             )
         return traj
 
@@ -288,7 +306,8 @@ class Integrator:
         if result.status != CONVERGED:
             raise ConvergenceError(
                 f"step_del: Newton iteration did not converge (increment {result.increment:.3g})",
-                step=0, t=t1, residual=result.increment,
+                step=0,
+                t=t1,
+                residual=result.increment,
             )
         return result.x[-n:].copy()
-

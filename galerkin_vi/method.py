@@ -165,13 +165,13 @@ class Galerkin:
         """Control nodes coincide with the quadrature nodes (then ``Phi`` is the identity)."""
         q = self.quadrature
         return (
-            self.nodes == "lobatto"
-            and q.family == "gauss_lobatto"
-            and q.npoints == self.degree + 1
+            self.nodes == "lobatto" and q.family == "gauss_lobatto" and q.npoints == self.degree + 1
         )
 
     def __repr__(self) -> str:
-        return f"Galerkin(degree={self.degree}, quadrature={self.quadrature!r}, nodes={self.nodes!r})"
+        return (
+            f"Galerkin(degree={self.degree}, quadrature={self.quadrature!r}, nodes={self.nodes!r})"
+        )
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Galerkin):

@@ -27,7 +27,9 @@ def _as_symbol_list(name: str, symbols: object) -> list[sp.Symbol]:
     out = list(symbols)
     for s in out:
         if not isinstance(s, sp.Symbol):
-            raise TypeError(f"{name} must contain sympy.Symbol only, got {s!r} ({type(s).__name__})")
+            raise TypeError(
+                f"{name} must contain sympy.Symbol only, got {s!r} ({type(s).__name__})"
+            )
     return out
 
 
@@ -90,8 +92,7 @@ class LagrangianSystem:
             raise ValueError("q must contain at least one symbol")
         if len(q_list) != len(v_list):
             raise ValueError(
-                f"q and v must have the same length, got len(q)={len(q_list)}, "
-                f"len(v)={len(v_list)}"
+                f"q and v must have the same length, got len(q)={len(q_list)}, len(v)={len(v_list)}"
             )
         if t is not None and not isinstance(t, sp.Symbol):
             raise TypeError(f"t must be a sympy.Symbol or None, got {type(t).__name__}")
@@ -151,7 +152,9 @@ class LagrangianSystem:
             index.update({str(s): i for i, s in enumerate(self.params)})
             for key, value in params.items():
                 if key not in index:
-                    raise ValueError(f"params: {key} is not a declared parameter {list(self.params)}")
+                    raise ValueError(
+                        f"params: {key} is not a declared parameter {list(self.params)}"
+                    )
                 x = _as_real(value, f"params[{key}]")
                 if not np.isfinite(x):
                     raise ValueError(f"params[{key}] must be finite, got {value!r}")
@@ -179,9 +182,7 @@ class LagrangianSystem:
         q = np.asarray(q, dtype=float)
         v = np.asarray(v, dtype=float)
         t = np.asarray(t, dtype=float)
-        return self._evaluators[name](
-            t, *np.moveaxis(q, -1, 0), *np.moveaxis(v, -1, 0), *prm
-        )
+        return self._evaluators[name](t, *np.moveaxis(q, -1, 0), *np.moveaxis(v, -1, 0), *prm)
 
     def _check_regular(self) -> None:
         rng = np.random.default_rng(12345)
@@ -239,7 +240,9 @@ class LagrangianSystem:
         return v
 
     def hamiltonian(self, q: ArrayLike, p: ArrayLike, t: ArrayLike = 0.0, params=None) -> NDArray:
-        r"""Energy :math:`H(t, q, p) = \langle p, v\rangle - L(t, q, v)`, :math:`v = (\mathbb FL)^{-1}(q, p)`.
+        r"""Energy :math:`H(t, q, p) = \langle p, v\rangle - L(t, q, v)`.
+
+        Here :math:`v = (\mathbb FL)^{-1}(q, p)` is the inverse Legendre transform.
 
         ``q`` and ``p`` have shape (..., n); the result has shape (...).
         """
@@ -260,7 +263,9 @@ class LagrangianSystem:
         """
         exprs = [sp.sympify(e) for e in xi]
         if len(exprs) != self.n:
-            raise ValueError(f"xi must have {self.n} components (one per coordinate), got {len(exprs)}")
+            raise ValueError(
+                f"xi must have {self.n} components (one per coordinate), got {len(exprs)}"
+            )
         allowed = set(self.q) | set(self.params)
         extra = set().union(*(e.free_symbols for e in exprs)) - allowed
         if extra:

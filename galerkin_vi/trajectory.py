@@ -54,7 +54,10 @@ class Trajectory:
         return dict(zip(self.system.params, self.params, strict=True))
 
     def velocities(self) -> NDArray[np.float64]:
-        r"""Velocities :math:`v_k = (\mathbb FL)^{-1}(q_k, p_k)` (full order, unlike :math:`\dot q_d`)."""
+        r"""Velocities :math:`v_k = (\mathbb FL)^{-1}(q_k, p_k)`.
+
+        These have the method's full order, unlike the polynomial's :math:`\dot q_d`.
+        """
         return self.system.inverse_legendre(self.q, self.p, self.t, self._param_dict())
 
     def energy(self) -> NDArray[np.float64]:

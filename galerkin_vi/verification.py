@@ -56,7 +56,9 @@ class OrderResult:
     def table(self) -> str:
         """The errors and pairwise orders as a small text table."""
         lines = [f"{'N':>8} {'h':>11} {'error':>11} {'order':>7}"]
-        for j, (n, h, e) in enumerate(zip(self.step_counts, self.step_sizes, self.errors, strict=True)):
+        for j, (n, h, e) in enumerate(
+            zip(self.step_counts, self.step_sizes, self.errors, strict=True)
+        ):
             if j == 0:
                 rate = ""
             else:
@@ -192,7 +194,13 @@ def measure_order(
 
     def run(n_steps: int):
         return integrator.integrate(
-            q0, v0, p0, h=t_final / n_steps, n_steps=n_steps, t0=t0, params=params,
+            q0,
+            v0,
+            p0,
+            h=t_final / n_steps,
+            n_steps=n_steps,
+            t0=t0,
+            params=params,
             save_every=1 if norm == "max" else n_steps,
         )
 

@@ -38,8 +38,10 @@ def _max_drift(problem: problems.Problem, method: gvi.Galerkin, h: float) -> dic
     for name, xi in problem.symmetries.items():
         J = traj.momentum(xi)
         generator = np.array(
-            [[float(sp.sympify(e).subs(dict(zip(problem.system.q, q, strict=True)))) for e in xi]
-             for q in traj.q[:: max(1, len(traj) // 20)]]
+            [
+                [float(sp.sympify(e).subs(dict(zip(problem.system.q, q, strict=True)))) for e in xi]
+                for q in traj.q[:: max(1, len(traj) // 20)]
+            ]
         )
         scale = np.max(np.sum(np.abs(traj.p[:: max(1, len(traj) // 20)] * generator), axis=1))
         drifts[name] = float(np.max(np.abs(J - J[0])) / max(1.0, scale))
@@ -48,8 +50,11 @@ def _max_drift(problem: problems.Problem, method: gvi.Galerkin, h: float) -> dic
 
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
-    a=st.floats(0.2, 2.0), b=st.floats(0.0, 1.0), c=st.floats(0.0, 0.5),
-    vx=st.floats(-0.3, 0.3), vy=st.floats(0.6, 1.2),
+    a=st.floats(0.2, 2.0),
+    b=st.floats(0.0, 1.0),
+    c=st.floats(0.0, 0.5),
+    vx=st.floats(-0.3, 0.3),
+    vy=st.floats(0.6, 1.2),
     method=st.sampled_from(METHODS),
 )
 def test_angular_momentum_central_force(a, b, c, vx, vy, method):

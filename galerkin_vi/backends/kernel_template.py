@@ -163,8 +163,26 @@ def make_work(s, n):
 
 @kernel
 def integrate_kernel(
-    q0, p0, v0, t0, h, n_steps, save_every, prm, b, c, d, Phi, D, E, tol, maxiter,
-    t_out, q_out, p_out, iterations_out,
+    q0,
+    p0,
+    v0,
+    t0,
+    h,
+    n_steps,
+    save_every,
+    prm,
+    b,
+    c,
+    d,
+    Phi,
+    D,
+    E,
+    tol,
+    maxiter,
+    t_out,
+    q_out,
+    p_out,
+    iterations_out,
 ):
     """Run ``n_steps`` steps of the position–momentum map from (q0, p0).
 

@@ -47,8 +47,9 @@ def discrete_hessian(
     t, Q, V = _points(tables, t0, h, C)
     values = system.evaluate("hessian", t, Q, V, prm)
     Lq, Lv = values[:, :n], values[:, n : 2 * n]
-    Lqq, Lqv, Lvv = (values[:, 2 * n + k * n * n : 2 * n + (k + 1) * n * n].reshape(-1, n, n)
-                     for k in range(3))
+    Lqq, Lqv, Lvv = (
+        values[:, 2 * n + k * n * n : 2 * n + (k + 1) * n * n].reshape(-1, n, n) for k in range(3)
+    )
     b, Phi, D = tables.b, tables.Phi, tables.D
     G = h * Phi.T @ (b[:, None] * Lq) + D.T @ (b[:, None] * Lv)
     H = (

@@ -88,8 +88,14 @@ def ode_reference(
         return np.tile(np.asarray(q0, dtype=float), (times.size, 1)).reshape(np.shape(t) + (n,))
     # steps capped so that the dense output between steps is as accurate as the steps
     sol = solve_ivp(
-        rhs, (0.0, t_end), np.concatenate([q0, v0]), method="DOP853", rtol=rtol,
-        atol=rtol * 1e-2, t_eval=times, max_step=0.02 * max(1.0, t_end),
+        rhs,
+        (0.0, t_end),
+        np.concatenate([q0, v0]),
+        method="DOP853",
+        rtol=rtol,
+        atol=rtol * 1e-2,
+        t_eval=times,
+        max_step=0.02 * max(1.0, t_end),
     )
     if not sol.success:
         raise RuntimeError(f"reference solution failed: {sol.message}")

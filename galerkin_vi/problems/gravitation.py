@@ -37,7 +37,10 @@ def _kepler_system() -> LagrangianSystem:
 
 
 def kepler(e: float = 0.5) -> Problem:
-    r"""Kepler problem :math:`L = \tfrac12|v|^2 + 1/|q|`, eccentricity ``e``, period :math:`2\pi`."""
+    r"""Kepler problem :math:`L = \tfrac12|v|^2 + 1/|q|`, eccentricity ``e``.
+
+    Semi-major axis 1, period :math:`2\pi`, exact solution by Kepler's equation.
+    """
     if not 0 <= e < 1:
         raise ValueError(f"eccentricity must be in [0, 1), got {e}")
     system = _kepler_system()
@@ -71,7 +74,10 @@ def central_force(
     q0: tuple[float, float] = (1.0, 0.0),
     v0: tuple[float, float] = (0.1, 1.0),
 ) -> Problem:
-    r"""Planar particle in :math:`V(r) = \tfrac a2 r^2 + \tfrac c4 r^4 - b/r` (rotation symmetric)."""
+    r"""Planar particle in :math:`V(r) = \tfrac a2 r^2 + \tfrac c4 r^4 - b/r`.
+
+    Rotation symmetric: the angular momentum is conserved.
+    """
     system = _central_force_system()
     x, y = system.q
     return Problem(
