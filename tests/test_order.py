@@ -5,7 +5,8 @@ probes step counts growing by 10^(0.8/p) and fits the three finest runs whose
 error lies in the window [1e-12, 1e-4] (exact solutions) or [1e-10, 1e-4]:
 above the float64 round-off floor and the reference's accuracy (DOP853 at
 rtol 1e-13 where no exact solution exists), below the pre-asymptotic range.
-The error is the maximum over all step points (``norm="max"``), which unlike the error at one time cannot pass through zero.
+The error is the maximum over all step points (``norm="max"``), which unlike
+the error at one time cannot pass through zero.
 
 Float64 limits what can be measured: for orders 8-12 on the nonlinear
 pendulum and double pendulum, the errors in that window are still
