@@ -282,17 +282,18 @@ class Integrator:
         s = tb.d.size - 1
         n = system.n
         t1 = float(t0) + h
+        # unknowns as increments: interior points of step k-1 from q0, all of step k from q1;
         # guess: the line through q0, q1 for step k-1, continued for step k
-        first = qa + tb.d[:, None] * (qb - qa)
-        second = qb + tb.d[:, None] * (qb - qa)
-        x0 = np.concatenate([first[1:s].ravel(), second[1:].ravel()])
+        step = qb - qa
+        x0 = np.concatenate([(tb.d[1:s, None] * step).ravel(), (tb.d[1:, None] * step).ravel()])
         m = (s - 1) * n
+        zero = np.zeros((1, n))
 
         def residual_and_jacobian(x: NDArray) -> tuple[NDArray, NDArray]:
-            Ca = np.vstack([qa, x[:m].reshape(s - 1, n), qb])
-            Cb = np.vstack([qb, x[m:].reshape(s, n)])
-            Ga, Ha = numpy_backend.discrete_hessian(system, tb, float(t0), h, Ca, prm)
-            Gb, Hb = numpy_backend.discrete_hessian(system, tb, t1, h, Cb, prm)
+            Ca = np.vstack([zero, x[:m].reshape(s - 1, n), step[None, :]])
+            Cb = np.vstack([zero, x[m:].reshape(s, n)])
+            Ga, Ha = numpy_backend.discrete_hessian(system, tb, float(t0), h, qa, Ca, prm)
+            Gb, Hb = numpy_backend.discrete_hessian(system, tb, t1, h, qb, Cb, prm)
             # equations: interior of step k-1, DEL at q_k, interior of step k
             R = np.concatenate([Ga[1:s].ravel(), Ga[s] + Gb[0], Gb[1:s].ravel()])
             J = np.zeros((R.size, x.size))
@@ -310,4 +311,4 @@ class Integrator:
                 t=t1,
                 residual=result.increment,
             )
-        return result.x[-n:].copy()
+        return qb + result.x[-n:]

@@ -10,7 +10,6 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-import sympy as sp
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -21,15 +20,11 @@ from .conftest import method_registry
 
 STEPS = 10_000
 RELATIVE_DRIFT = 1e-11
-# N-body, 1e4 steps of h = 0.01: max|dJ| / scale measured 4e-13 .. 1.5e-10 (s = 3, masses up to 3)
-# (translation_y at s = 3 Gauss: 1.0e-10 absolute, scale 5.1). The drift is systematic
-# round-off growing with s; the 1e-11 target is not yet met here (see the issue note).
-N_BODY_RELATIVE_DRIFT = 5e-10
 METHODS = method_registry()
 
 
 def _max_drift(problem: problems.Problem, method: gvi.Galerkin, h: float) -> dict[str, float]:
-    """Max |J_k - J_0| relative to the size of the terms of J, max_k sum_a |p_a xi_a(q)|."""
+    """Max |J_k - J_0| / max(1, |J_0|) over the run, for every symmetry of the problem."""
     integrator = gvi.Integrator(problem.system, method)
     traj = integrator.integrate(
         problem.q0, problem.v0, h=h, n_steps=STEPS, params=problem.params, save_every=10
@@ -37,14 +32,7 @@ def _max_drift(problem: problems.Problem, method: gvi.Galerkin, h: float) -> dic
     drifts = {}
     for name, xi in problem.symmetries.items():
         J = traj.momentum(xi)
-        generator = np.array(
-            [
-                [float(sp.sympify(e).subs(dict(zip(problem.system.q, q, strict=True)))) for e in xi]
-                for q in traj.q[:: max(1, len(traj) // 20)]
-            ]
-        )
-        scale = np.max(np.sum(np.abs(traj.p[:: max(1, len(traj) // 20)] * generator), axis=1))
-        drifts[name] = float(np.max(np.abs(J - J[0])) / max(1.0, scale))
+        drifts[name] = float(np.max(np.abs(J - J[0])) / max(1.0, abs(J[0])))
     return drifts
 
 
@@ -65,6 +53,8 @@ def test_angular_momentum_central_force(a, b, c, vx, vy, method):
     assert drift["rotation"] <= RELATIVE_DRIFT, (method, drift)
 
 
+# measured (masses 2.5, 0.7, 1.9, h = 0.01, 1e4 steps, |q| grows to ~50): |dP| <= 2.1e-13,
+# |dJ| <= 1.9e-12 for s = 2, 3 (before control points were stored as increments: 5e-9)
 @settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     masses=st.tuples(st.floats(0.3, 3.0), st.floats(0.3, 3.0), st.floats(0.3, 3.0)),
@@ -74,7 +64,7 @@ def test_angular_momentum_central_force(a, b, c, vx, vy, method):
 def test_linear_and_angular_momentum_n_body(masses, method, seed):
     problem = problems.n_body(masses, seed=seed)
     drift = _max_drift(problem, method, h=0.01)
-    assert max(drift.values()) <= N_BODY_RELATIVE_DRIFT, (method, drift)
+    assert max(drift.values()) <= RELATIVE_DRIFT, (method, drift)
 
 
 def test_every_registered_method_conserves_kepler_angular_momentum():

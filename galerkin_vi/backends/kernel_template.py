@@ -6,10 +6,12 @@ whole, so that one file holds all the code numba caches. The header imports the
 documented stubs of :mod:`.pointwise_interface` only to make this file valid
 Python on its own.
 
-Notation (see the theory page): control points :math:`C = (q^0,\dots,q^s)`,
+Notation (see the theory page): control points :math:`q^\nu = q_k + C^\nu`
+stored as increments :math:`C^\nu` from the step's start (:math:`C^0 = 0`),
 quadrature weights :math:`b_i`, tables :math:`\Phi_{i\nu} = \ell_\nu(c_i)` and
 :math:`D_{i\nu} = \ell'_\nu(c_i)`. At quadrature point :math:`i`,
-:math:`Q_i = \sum_\nu \Phi_{i\nu} q^\nu` and :math:`V_i = \tfrac1h\sum_\nu D_{i\nu} q^\nu`;
+:math:`Q_i = q_k + \sum_\nu \Phi_{i\nu} C^\nu` and
+:math:`V_i = \tfrac1h\sum_\nu D_{i\nu} C^\nu`;
 
 .. math::
 
@@ -40,7 +42,7 @@ STATUS_NONFINITE = 3
 
 
 @kernel
-def assemble_gradient(t0, h, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G):
+def assemble_gradient(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G):
     """G[nu] = dL_d/dq^nu for all nu = 0..s."""
     r = b.shape[0]
     s1, n = C.shape
@@ -49,10 +51,10 @@ def assemble_gradient(t0, h, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G):
         for a in range(n):
             qa = 0.0
             va = 0.0
-            for nu in range(s1):
+            for nu in range(1, s1):
                 qa += Phi[i, nu] * C[nu, a]
                 va += D[i, nu] * C[nu, a]
-            Q[a] = qa
+            Q[a] = qk[a] + qa
             V[a] = va / h
         point_gradient(t0 + c[i] * h, Q, V, prm, Lq, Lv)
         for nu in range(s1):
@@ -63,7 +65,7 @@ def assemble_gradient(t0, h, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G):
 
 
 @kernel
-def assemble_newton(t0, h, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K):
+def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K):
     """G as above and K[(nu, a), (mu, c)] = dG^nu_a / dq^mu_c, nu = 0..s-1, mu = 1..s."""
     r = b.shape[0]
     s1, n = C.shape
@@ -74,10 +76,10 @@ def assemble_newton(t0, h, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G,
         for a in range(n):
             qa = 0.0
             va = 0.0
-            for nu in range(s1):
+            for nu in range(1, s1):
                 qa += Phi[i, nu] * C[nu, a]
                 va += D[i, nu] * C[nu, a]
-            Q[a] = qa
+            Q[a] = qk[a] + qa
             V[a] = va / h
         point_hessian(t0 + c[i] * h, Q, V, prm, Lq, Lv, Lqq, Lqv, Lvv)
         for nu in range(s1):
@@ -102,7 +104,7 @@ def assemble_newton(t0, h, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G,
 
 
 @kernel
-def solve_stages(t0, h, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
+def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
     """Newton on the stage equations; C[1:] holds the guess on entry, the solution on exit.
 
     Returns (status, iterations, last increment, last residual max-norm).
@@ -113,7 +115,7 @@ def solve_stages(t0, h, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
     previous = np.inf
     residual = np.inf
     for it in range(1, maxiter + 1):
-        assemble_newton(t0, h, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K)
+        assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K)
         residual = 0.0
         for nu in range(s):
             for a in range(n):
@@ -196,10 +198,11 @@ def integrate_kernel(
     G = work[7]
     C = np.zeros((s1, n))
     C_prev = np.zeros((s1, n))
+    qk = q0.copy()
     pk = p0.copy()
     for a in range(n):
         for nu in range(s1):
-            C[nu, a] = q0[a] + d[nu] * h * v0[a]
+            C[nu, a] = d[nu] * h * v0[a]
     t_out[0] = t0
     q_out[0, :] = q0
     p_out[0, :] = p0
@@ -208,34 +211,38 @@ def integrate_kernel(
     for k in range(n_steps):
         tk = t0 + k * h
         if k > 0:
+            # previous polynomial extrapolated, re-based at q_k = q_{k-1} + C_prev[s]
             for nu in range(s1):
                 for a in range(n):
                     C_prev[nu, a] = C[nu, a]
-            for nu in range(1, s1):
+            for nu in range(s1):
                 for a in range(n):
                     acc = 0.0
-                    for mu in range(s1):
+                    for mu in range(1, s1):
                         acc += E[nu, mu] * C_prev[mu, a]
-                    C[nu, a] = acc
+                    C[nu, a] = acc - C_prev[s, a]
             for a in range(n):
-                C[0, a] = C_prev[s, a]
+                C[0, a] = 0.0
         status, its, increment, residual = solve_stages(
-            tk, h, C, pk, prm, b, c, Phi, D, tol, maxiter, work
+            tk, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work
         )
         iterations_out[k] = its
         if status != STATUS_OK:
             return status, k, saved, worst, increment
         if residual > worst:
             worst = residual
-        assemble_gradient(tk, h, C, prm, b, c, Phi, D, work[0], work[1], work[2], work[3], G)
+        assemble_gradient(
+            tk, h, qk, C, prm, b, c, Phi, D, work[0], work[1], work[2], work[3], G
+        )
         for a in range(n):
             pk[a] = G[s, a]
+            qk[a] += C[s, a]
             if not abs(pk[a]) < 1e300:
                 return STATUS_NONFINITE, k, saved, worst, increment
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             t_out[saved] = t0 + (k + 1) * h
             for a in range(n):
-                q_out[saved, a] = C[s, a]
+                q_out[saved, a] = qk[a]
                 p_out[saved, a] = pk[a]
             saved += 1
     return STATUS_OK, n_steps, saved, worst, 0.0

@@ -17,19 +17,29 @@ from ..system import LagrangianSystem
 __all__ = ["discrete_gradient", "discrete_hessian", "integrate", "solve_step"]
 
 
-def _points(tables: MethodTables, t0: float, h: float, C: NDArray):
+def _points(tables: MethodTables, t0: float, h: float, qk: NDArray, C: NDArray):
+    # increments C from the base point qk keep V free of eps*|q|/h rounding (see kernel_template)
     t = t0 + tables.c * h
-    Q = tables.Phi @ C
-    V = (tables.D @ C) / h
+    Q = qk + tables.Phi[:, 1:] @ C[1:]
+    V = (tables.D[:, 1:] @ C[1:]) / h
     return t, Q, V
 
 
 def discrete_gradient(
-    system: LagrangianSystem, tables: MethodTables, t0: float, h: float, C: NDArray, prm: NDArray
+    system: LagrangianSystem,
+    tables: MethodTables,
+    t0: float,
+    h: float,
+    qk: NDArray,
+    C: NDArray,
+    prm: NDArray,
 ) -> NDArray:
-    r""":math:`G^\nu = \partial L_d/\partial q^\nu`, shape (s + 1, n)."""
+    r""":math:`G^\nu = \partial L_d/\partial q^\nu` at :math:`q^\nu = q_k + C^\nu`, shape (s + 1, n).
+
+    ``C`` holds the control points as increments from ``qk`` (``C[0] = 0``).
+    """
     n = system.n
-    t, Q, V = _points(tables, t0, h, C)
+    t, Q, V = _points(tables, t0, h, qk, C)
     values = system.evaluate("gradient", t, Q, V, prm)
     Lq, Lv = values[:, :n], values[:, n:]
     b = tables.b[:, None]
@@ -37,14 +47,20 @@ def discrete_gradient(
 
 
 def discrete_hessian(
-    system: LagrangianSystem, tables: MethodTables, t0: float, h: float, C: NDArray, prm: NDArray
+    system: LagrangianSystem,
+    tables: MethodTables,
+    t0: float,
+    h: float,
+    qk: NDArray,
+    C: NDArray,
+    prm: NDArray,
 ) -> tuple[NDArray, NDArray]:
     r"""Gradient and full Hessian :math:`\partial^2 L_d/\partial q^\nu\partial q^\mu`.
 
     Returns ``G`` of shape (s + 1, n) and ``H`` of shape (s + 1, n, s + 1, n).
     """
     n = system.n
-    t, Q, V = _points(tables, t0, h, C)
+    t, Q, V = _points(tables, t0, h, qk, C)
     values = system.evaluate("hessian", t, Q, V, prm)
     Lq, Lv = values[:, :n], values[:, n : 2 * n]
     Lqq, Lqv, Lvv = (
@@ -75,21 +91,22 @@ def solve_step(
 ) -> tuple[NDArray, NewtonResult]:
     r"""Solve :math:`p_k + G^0 = 0`, :math:`G^\nu = 0` (:math:`0<\nu<s`) for :math:`q^1..q^s`.
 
-    Returns the control points ``C`` (shape (s + 1, n)) and the Newton result.
+    ``guess`` and the returned ``C`` (shape (s + 1, n)) are increments from ``qk``.
     """
     s1, n = guess.shape
     s = s1 - 1
+    zero = np.zeros((1, n))
 
     def residual_and_jacobian(x: NDArray) -> tuple[NDArray, NDArray]:
-        C = np.vstack([qk, x.reshape(s, n)])
-        G, H = discrete_hessian(system, tables, t0, h, C, prm)
+        C = np.vstack([zero, x.reshape(s, n)])
+        G, H = discrete_hessian(system, tables, t0, h, qk, C, prm)
         R = G[:s].copy()
         R[0] += pk
         K = H[:s, :, 1:, :].reshape(s * n, s * n)
         return R.ravel(), K
 
     result = newton_solve(residual_and_jacobian, guess[1:].ravel(), tol=tol, maxiter=maxiter)
-    return np.vstack([qk, result.x.reshape(s, n)]), result
+    return np.vstack([zero, result.x.reshape(s, n)]), result
 
 
 def integrate(
@@ -113,24 +130,27 @@ def integrate(
     """Same contract as the compiled ``integrate_kernel`` (see kernel_template)."""
     d, E = tables.d, tables.extrapolation
     s = d.size - 1
-    C = q0[None, :] + d[:, None] * h * v0[None, :]
-    pk = p0.copy()
+    C = d[:, None] * h * v0[None, :]
+    qk, pk = q0.copy(), p0.copy()
     t_out[0], q_out[0], p_out[0] = t0, q0, p0
     saved, worst = 1, 0.0
     for k in range(n_steps):
         tk = t0 + k * h
         if k > 0:
-            C = E @ C  # row 0 is exactly the previous end point: E[0] = e_s
-        C, result = solve_step(system, tables, tk, h, C[0].copy(), pk, C, prm, tol, maxiter)
+            # previous polynomial extrapolated and re-based at the new start point
+            C = E[:, 1:] @ C[1:] - C[s]
+            C[0] = 0.0
+        C, result = solve_step(system, tables, tk, h, qk, pk, C, prm, tol, maxiter)
         iterations_out[k] = result.iterations
         if result.status != CONVERGED:
             return 1, k, saved, worst, result.increment
         worst = max(worst, result.residual)
-        pk = discrete_gradient(system, tables, tk, h, C, prm)[s]
+        pk = discrete_gradient(system, tables, tk, h, qk, C, prm)[s]
+        qk = qk + C[s]
         if not np.all(np.isfinite(pk)):
             return 3, k, saved, worst, result.increment
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             t_out[saved] = t0 + (k + 1) * h
-            q_out[saved], p_out[saved] = C[s], pk
+            q_out[saved], p_out[saved] = qk, pk
             saved += 1
     return 0, n_steps, saved, worst, 0.0
