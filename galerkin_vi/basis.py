@@ -58,6 +58,7 @@ __all__ = [
     "equidistant_control_nodes",
     "equidistant_control_nodes_mp",
     "lagrange_tables",
+    "lagrange_tables_mp",
     "lobatto_control_nodes",
     "lobatto_control_nodes_mp",
 ]
@@ -418,6 +419,20 @@ def lagrange_tables(
     array([[-2.,  2.,  0.],
            [ 1., -4.,  3.]])
     """
+    phi, der = lagrange_tables_mp(control_nodes_mp, points_mp, dps)
+    return (
+        np.array([[float(v) for v in row] for row in phi]).reshape(len(phi), -1),
+        np.array([[float(v) for v in row] for row in der]).reshape(len(der), -1),
+    )
+
+
+def lagrange_tables_mp(
+    control_nodes_mp: Sequence[object], points_mp: Sequence[object], dps: int = 40
+) -> tuple[list[list[mpmath.mpf]], list[list[mpmath.mpf]]]:
+    """The tables of :func:`lagrange_tables` as nested lists of mpmath numbers, unrounded.
+
+    Used by the extended-precision order studies.
+    """
     dps = _require_int(dps, "dps", 1)
     with mpmath.workdps(dps):
         d = _mp_list(control_nodes_mp, "control nodes")
@@ -428,9 +443,9 @@ def lagrange_tables(
         if any(a >= b for a, b in zip(d, d[1:], strict=False)):
             raise ValueError("control nodes must be strictly increasing")
         w = [1 / mpmath.fprod(d[nu] - d[mu] for mu in range(n) if mu != nu) for nu in range(n)]
-        phi = np.empty((len(c), n))
-        der = np.empty((len(c), n))
-        for i, x in enumerate(c):
+        phi: list[list[mpmath.mpf]] = []
+        der: list[list[mpmath.mpf]] = []
+        for x in c:
             delta = [x - dm for dm in d]
             hits = [j for j, v in enumerate(delta) if v == 0]
             if hits:
@@ -450,6 +465,6 @@ def lagrange_tables(
                     vals = [wn * p for wn, p in zip(w, prods, strict=True)]
                 sums = _mp_exclusive(inv, product=False)
                 ders = [v * s for v, s in zip(vals, sums, strict=True)]
-            phi[i] = [float(v) for v in vals]
-            der[i] = [float(v) for v in ders]
+            phi.append([+v for v in vals])
+            der.append([+v for v in ders])
     return phi, der

@@ -21,13 +21,22 @@ import hashlib
 import sys
 from dataclasses import dataclass
 from importlib import resources
+from typing import TYPE_CHECKING
 
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
-from .system import LagrangianSystem
+if TYPE_CHECKING:
+    from .system import LagrangianSystem
 
-__all__ = ["GENERATOR_VERSION", "KernelSpec", "kernel_spec", "render_module", "signature"]
+__all__ = [
+    "GENERATOR_VERSION",
+    "KernelSpec",
+    "kernel_spec",
+    "render_module",
+    "signature",
+    "unsupported_functions",
+]
 
 GENERATOR_VERSION = "1"
 _KERNEL_MARKER = "\n# ---- kernel ----\n"
@@ -128,6 +137,18 @@ class _KernelPrinter(PythonCodePrinter):
 
     def _print_Symbol(self, expr: sp.Symbol) -> str:
         return expr.name
+
+
+def unsupported_functions(expr: sp.Expr) -> list[str]:
+    """Names of the functions in ``expr`` that the kernel printer cannot print."""
+    printer = _KernelPrinter()
+    names = set()
+    for f in expr.atoms(sp.Function):
+        try:
+            printer.doprint(f)
+        except (NotImplementedError, TypeError):
+            names.add(type(f).__name__)
+    return sorted(names)
 
 
 def _function_body(entries: list[tuple[str, sp.Expr]], returns: sp.Expr | None = None) -> list[str]:

@@ -38,7 +38,8 @@ class ConvergenceError(RuntimeError):
     residual : float
         Max-norm of the last Newton increment or residual seen.
     partial : Trajectory or None
-        The trajectory up to and including ``t_k`` (saved points only).
+        The saved states before the failing step plus the last good state
+        :math:`(t_k, q_k, p_k)`, whether or not it was due for saving.
     """
 
     def __init__(

@@ -9,6 +9,7 @@ from functools import cached_property
 import numpy as np
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
+from sympy.core.function import AppliedUndef
 
 from .errors import DegenerateLagrangianError
 from .numeric import FlatEvaluator
@@ -114,6 +115,7 @@ class LagrangianSystem:
             raise ValueError(f"L contains undeclared symbols: {names}{hint}")
         if L.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
             raise ValueError("L contains an infinite or undefined constant")
+        _check_printable(L)
 
         self.L = L
         self.q = tuple(q_list)
@@ -185,20 +187,31 @@ class LagrangianSystem:
         return self._evaluators[name](t, *np.moveaxis(q, -1, 0), *np.moveaxis(v, -1, 0), *prm)
 
     def _check_regular(self) -> None:
+        """Raise if L_vv is singular at every sampled point where it is finite.
+
+        Samples |q|, |v| at several scales, so that Lagrangians defined only on
+        part of the space (e.g. |v| < 1) are sampled inside their domain too.
+        """
         rng = np.random.default_rng(12345)
         prm = self.param_defaults
         n = self.n
-        for _ in range(3):
-            q = rng.uniform(0.3, 1.3, n) * rng.choice([-1, 1], n)
-            v = rng.uniform(0.3, 1.3, n) * rng.choice([-1, 1], n)
-            with np.errstate(all="ignore"):
-                m = self.evaluate("Lvv", 0.37, q, v, prm).reshape(n, n)
-            if np.all(np.isfinite(m)) and is_regular(m):
-                return
-        raise DegenerateLagrangianError(
-            "d2L/dv2 is singular (checked at random points): the Legendre transform "
-            "p = dL/dv cannot be inverted, so the Lagrangian is degenerate"
-        )
+        finite_samples = 0
+        for scale in (1.0, 0.3, 0.05):
+            for _ in range(2):
+                q = rng.uniform(0.3, 1.3, n) * rng.choice([-1, 1], n)
+                v = scale * rng.uniform(0.3, 1.3, n) * rng.choice([-1, 1], n) / np.sqrt(n)
+                with np.errstate(all="ignore"):
+                    m = self.evaluate("Lvv", 0.37, q, v, prm).reshape(n, n)
+                if not np.all(np.isfinite(m)):
+                    continue
+                finite_samples += 1
+                if is_regular(m):
+                    return
+        if finite_samples:
+            raise DegenerateLagrangianError(
+                "d2L/dv2 is singular (checked at random points): the Legendre transform "
+                "p = dL/dv cannot be inverted, so the Lagrangian is degenerate"
+            )
 
     # --------------------------------------------------------- Legendre maps
     def legendre(self, q: ArrayLike, v: ArrayLike, t: ArrayLike = 0.0, params=None) -> NDArray:
@@ -210,33 +223,59 @@ class LagrangianSystem:
     ) -> NDArray:
         r"""Velocities :math:`v` with :math:`\partial L/\partial v(t, q, v) = p`.
 
-        Newton's method on :math:`L_{vv}` started at :math:`v = 0`; one step is
-        exact when :math:`L` is quadratic in :math:`v`.
+        Newton's method on :math:`L_{vv}` started at :math:`v = 0`, damped
+        (step halved) wherever a full step leaves the domain of :math:`L` or
+        does not reduce the residual; one step is exact when :math:`L` is
+        quadratic in :math:`v`.
 
         Raises
         ------
         DegenerateLagrangianError
             Where :math:`L_{vv}` is singular.
+        ValueError
+            If no velocity is found (``p`` outside the range of the transform).
         """
         prm = self.parameter_vector(params)
         q = np.asarray(q, dtype=float)
         p = np.asarray(p, dtype=float)
         q, p = np.broadcast_arrays(q, p)
         n = self.n
+        t = np.broadcast_to(np.asarray(t, dtype=float), q.shape[:-1])
+
+        def residual(v: NDArray) -> NDArray:
+            with np.errstate(all="ignore"):
+                return self.evaluate("Lv", t, q, v, prm) - p
+
         v = np.zeros_like(p)
-        iters = 1 if self.structure.quadratic_in_v else _LEGENDRE_MAXITER
-        for _ in range(iters):
-            r = self.evaluate("Lv", t, q, v, prm) - p
+        r = residual(v)
+        if self.structure.quadratic_in_v:
             m = self.evaluate("Lvv", t, q, v, prm).reshape(q.shape[:-1] + (n, n))
-            try:
-                dv = np.linalg.solve(m, -r[..., None])[..., 0]
-            except np.linalg.LinAlgError as exc:
-                raise DegenerateLagrangianError(
-                    "d2L/dv2 is singular at the given state: cannot invert the Legendre transform"
-                ) from exc
-            v = v + dv
-            if np.max(np.abs(dv), initial=0.0) <= 1e-15 * (1 + np.max(np.abs(v), initial=0.0)):
+            return v + _solve_rows(m, -r)
+        for _ in range(_LEGENDRE_MAXITER):
+            with np.errstate(all="ignore"):
+                m = self.evaluate("Lvv", t, q, v, prm).reshape(q.shape[:-1] + (n, n))
+            dv = _solve_rows(m, -r)
+            size = np.max(np.abs(r), axis=-1, initial=0.0)
+            step = np.ones(q.shape[:-1] + (1,))
+            for _halving in range(60):
+                trial = v + step * dv
+                r_trial = residual(trial)
+                bad = ~(np.max(np.abs(r_trial), axis=-1, initial=0.0) <= np.maximum(size, 1e-300))
+                bad &= np.any(np.abs(dv) > 0, axis=-1)
+                if not np.any(bad):
+                    break
+                step[bad] *= 0.5
+            converged = np.max(np.abs(trial - v), initial=0.0) <= 1e-15 * (
+                1 + np.max(np.abs(trial), initial=0.0)
+            )
+            v, r = trial, r_trial
+            if converged:
                 break
+        if not np.all(np.isfinite(v)) or not np.all(np.abs(r) <= 1e-10 * (1 + np.abs(p))):
+            raise ValueError(
+                "inverse Legendre transform: no velocity v with dL/dv(q, v) = p was found "
+                "(p may lie outside the range of the Legendre transform)"
+            )
         return v
 
     def hamiltonian(self, q: ArrayLike, p: ArrayLike, t: ArrayLike = 0.0, params=None) -> NDArray:
@@ -298,6 +337,32 @@ def _as_real(value: object, name: str) -> float:
         return float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError) as exc:
         raise TypeError(f"{name} must be a real number, got {value!r}") from exc
+
+
+def _solve_rows(m: NDArray, rhs: NDArray) -> NDArray:
+    try:
+        return np.linalg.solve(m, rhs[..., None])[..., 0]
+    except np.linalg.LinAlgError as exc:
+        raise DegenerateLagrangianError(
+            "d2L/dv2 is singular at the given state: cannot invert the Legendre transform"
+        ) from exc
+
+
+def _check_printable(L: sp.Expr) -> None:
+    """Reject functions the code generators cannot print, naming them."""
+    undefined = sorted({str(f) for f in L.atoms(AppliedUndef)})
+    if undefined:
+        raise ValueError(
+            f"L contains undefined functions {', '.join(undefined)}: give them as explicit "
+            "SymPy expressions"
+        )
+    from .codegen import unsupported_functions
+
+    unsupported = unsupported_functions(L)
+    if unsupported:
+        raise ValueError(
+            f"L uses functions the code generators cannot compile: {', '.join(unsupported)}"
+        )
 
 
 def is_regular(m: NDArray) -> bool:

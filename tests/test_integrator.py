@@ -46,7 +46,9 @@ def double_pendulum():
 @pytest.fixture(scope="module")
 def separable():
     return gvi.LagrangianSystem(
-        SEPARABLE_L, [x_, y_], [vx_, vy_],
+        SEPARABLE_L,
+        [x_, y_],
+        [vx_, vy_],
         params={m11: SEPARABLE_M[0, 0], m12: SEPARABLE_M[0, 1], m22: SEPARABLE_M[1, 1]},
     )
 
@@ -208,8 +210,9 @@ def test_gauss_s_is_gauss_collocation_runge_kutta(double_pendulum, s, backend):
     q0 = np.array([1.0, 0.5])
     p0 = double_pendulum.legendre(q0, np.array([0.0, 0.3]))
     y1 = gauss_rk_step(double_pendulum_vector_field, np.concatenate([q0, p0]), h, s)
-    integrator = gvi.Integrator(double_pendulum, gvi.Galerkin(s, gvi.gauss_legendre(s)),
-                                backend=backend)
+    integrator = gvi.Integrator(
+        double_pendulum, gvi.Galerkin(s, gvi.gauss_legendre(s)), backend=backend
+    )
     q1, p1 = integrator.step(q0, p0, h)
     assert np.abs(q1 - y1[:2]).max() <= 1e-12  # measured 1.1e-16 (s=2), 1.1e-16 (s=3)
     assert np.abs(p1 - y1[2:]).max() <= 1e-12  # measured 1.4e-15, 3.3e-15
@@ -263,7 +266,9 @@ def test_numpy_and_numba_backends_agree(problems, name, method):
     assert np.abs(runs[0].p - runs[1].p).max() <= 1e-12  # measured <= 3.5e-13
     np.testing.assert_array_equal(runs[0].t, runs[1].t)
     assert runs[0].newton_iterations.shape == runs[1].newton_iterations.shape == (100,)
-    assert abs(runs[0].mean_newton_iterations - runs[1].mean_newton_iterations) <= 0.5  # measured <= 0.44
+    assert (
+        abs(runs[0].mean_newton_iterations - runs[1].mean_newton_iterations) <= 0.5
+    )  # measured <= 0.44
 
 
 def test_auto_backend_is_numba(pendulum):
@@ -281,8 +286,9 @@ def pendulum_integrator(pendulum):
 def test_save_every(pendulum_integrator, n_steps, save_every):
     h, t0 = 0.1, 0.25
     full = pendulum_integrator.integrate([1.5], [0.3], h=h, n_steps=n_steps, t0=t0)
-    part = pendulum_integrator.integrate([1.5], [0.3], h=h, n_steps=n_steps, t0=t0,
-                                         save_every=save_every)
+    part = pendulum_integrator.integrate(
+        [1.5], [0.3], h=h, n_steps=n_steps, t0=t0, save_every=save_every
+    )
     rows = sorted(set(range(0, n_steps + 1, save_every)) | {n_steps})
     assert len(part) == len(rows)
     np.testing.assert_array_equal(part.q, full.q[rows])
@@ -292,11 +298,11 @@ def test_save_every(pendulum_integrator, n_steps, save_every):
 
 
 def test_full_run_shapes_and_times(pendulum_integrator):
-    traj = pendulum_integrator.integrate(np.array([1.5]), np.array([0.3]), h=0.1, n_steps=30,
-                                         t0=-1.0)
+    traj = pendulum_integrator.integrate(
+        np.array([1.5]), np.array([0.3]), h=0.1, n_steps=30, t0=-1.0
+    )
     assert traj.t.shape == (31,) and traj.q.shape == (31, 1) and traj.p.shape == (31, 1)
-    np.testing.assert_allclose(traj.t, -1.0 + 0.1 * np.arange(31), rtol=0,
-                               atol=1e-15)  # measured 0
+    np.testing.assert_allclose(traj.t, -1.0 + 0.1 * np.arange(31), rtol=0, atol=1e-15)  # measured 0
     assert traj.q[0, 0] == 1.5
     assert traj.p[0, 0] == 0.3  # p0 = dL/dv = v0
     assert np.all(traj.newton_iterations >= 1)
@@ -330,8 +336,7 @@ def test_negative_h_runs_backward_and_recovers_the_start(double_pendulum, method
     integrator = gvi.Integrator(double_pendulum, method, backend=backend)
     q0, v0, h, n = np.array([1.0, 0.5]), np.array([0.0, 0.3]), 0.05, 40
     forward = integrator.integrate(q0, v0, h=h, n_steps=n)
-    back = integrator.integrate(forward.q[-1], p0=forward.p[-1], h=-h, n_steps=n,
-                                t0=forward.t[-1])
+    back = integrator.integrate(forward.q[-1], p0=forward.p[-1], h=-h, n_steps=n, t0=forward.t[-1])
     np.testing.assert_allclose(back.t, forward.t[::-1], rtol=0, atol=1e-14)
     assert np.abs(back.q - forward.q[::-1]).max() <= 1e-12  # measured 5.4e-14
     assert np.abs(back.p - forward.p[::-1]).max() <= 1e-12  # measured 1.8e-13
@@ -478,14 +483,16 @@ def test_convergence_error_mid_run_keeps_the_partial_trajectory(blow_up, backend
     assert "smaller h" in str(err)
     partial = err.partial
     assert isinstance(partial, gvi.Trajectory)
-    # every saved state before the failing step, nothing after it
-    assert len(partial) == err.step // save_every + 1
-    np.testing.assert_allclose(partial.t, t0 + h * save_every * np.arange(len(partial)),
-                               rtol=1e-15)
+    # every saved state before the failing step plus the last good state, nothing after it
+    assert len(partial) == err.step // save_every + 1 + (err.step % save_every != 0)
+    assert partial.t[-1] == pytest.approx(t0 + err.step * h, rel=1e-15)
+    due = t0 + h * save_every * np.arange(err.step // save_every + 1)
+    np.testing.assert_allclose(partial.t[: due.size], due, rtol=1e-15)
     assert partial.newton_iterations.shape == (err.step + 1,)  # the failing step included
     # ... and equal to a successful run that stops just before the failure
-    shorter = integrator.integrate([1.0], [0.0], h=h, n_steps=err.step, t0=t0,
-                                   save_every=save_every)
+    shorter = integrator.integrate(
+        [1.0], [0.0], h=h, n_steps=err.step, t0=t0, save_every=save_every
+    )
     rows = [i for i, time in enumerate(shorter.t) if time in set(partial.t)]
     np.testing.assert_array_equal(shorter.q[rows], partial.q)
     np.testing.assert_array_equal(shorter.p[rows], partial.p)
@@ -495,8 +502,9 @@ def test_convergence_error_mid_run_keeps_the_partial_trajectory(blow_up, backend
 def test_convergence_error_same_step_in_both_backends(blow_up):
     steps = []
     for backend in BACKENDS:
-        integrator = gvi.Integrator(blow_up, gvi.Galerkin(2, gvi.gauss_legendre(2)),
-                                    backend=backend)
+        integrator = gvi.Integrator(
+            blow_up, gvi.Galerkin(2, gvi.gauss_legendre(2)), backend=backend
+        )
         with np.errstate(all="ignore"), pytest.raises(gvi.ConvergenceError) as info:
             integrator.integrate([1.0], [0.0], h=0.02, n_steps=1000)
         steps.append(info.value.step)
@@ -506,8 +514,7 @@ def test_convergence_error_same_step_in_both_backends(blow_up):
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_convergence_error_at_the_first_step(pendulum, backend):
     # one Newton iteration from the linear guess cannot meet tol
-    integrator = gvi.Integrator(pendulum, gvi.Galerkin(3), backend=backend, tol=1e-15,
-                                maxiter=1)
+    integrator = gvi.Integrator(pendulum, gvi.Galerkin(3), backend=backend, tol=1e-15, maxiter=1)
     with pytest.raises(gvi.ConvergenceError) as info:
         integrator.integrate([1.5], [0.3], h=0.3, n_steps=10, t0=1.0)
     err = info.value
@@ -527,8 +534,13 @@ def test_convergence_error_is_a_runtime_error():
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_source_contains_the_generated_point_functions(pendulum, backend):
     source = gvi.Integrator(pendulum, gvi.Galerkin(2), backend=backend).source
-    for name in ("def point_gradient", "def point_hessian", "def lagrangian",
-                 "def integrate_kernel", "def lu_factor_inplace"):
+    for name in (
+        "def point_gradient",
+        "def point_hessian",
+        "def lagrangian",
+        "def integrate_kernel",
+        "def lu_factor_inplace",
+    ):
         assert name in source
     assert "math.sin" in source  # L_q = -g sin(q) is in the printed code
     assert "prm[0]" in source  # the parameter g is run-time data, not a baked-in constant

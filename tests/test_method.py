@@ -191,8 +191,9 @@ def test_tables_reproduce_polynomials_of_degree_s(method):
     for p in _random_polynomials(method.degree):
         # Phi interpolates, D differentiates the interpolant at the quadrature nodes
         np.testing.assert_allclose(tb.Phi @ p(tb.d), p(tb.c), rtol=0, atol=1e-14)  # 6.7e-16
-        np.testing.assert_allclose(tb.D @ p(tb.d), p.deriv()(tb.c), rtol=0,
-                                   atol=1e-13)  # max 1.2e-14 (s = 6 equidistant)
+        np.testing.assert_allclose(
+            tb.D @ p(tb.d), p.deriv()(tb.c), rtol=0, atol=1e-13
+        )  # max 1.2e-14 (s = 6 equidistant)
 
 
 @pytest.mark.parametrize("method", METHODS, ids=repr)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -157,15 +157,17 @@ def _permuted(A, piv):
     return pa
 
 
+# exact zeros exercise the pivoting; no tiny magnitudes that would overflow the solution
+entries = st.one_of(st.just(0.0), st.floats(1e-3, 10), st.floats(-10, -1e-3))
 matrices = st.integers(1, 8).flatmap(
     lambda n: st.tuples(
-        hnp.arrays(np.float64, (n, n), elements=st.floats(-10, 10, allow_subnormal=False)),
-        hnp.arrays(np.float64, (n,), elements=st.floats(-10, 10, allow_subnormal=False)),
+        hnp.arrays(np.float64, (n, n), elements=entries),
+        hnp.arrays(np.float64, (n,), elements=entries),
     )
 )
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.filter_too_much])
 @given(matrices)
 def test_lu_solve_matches_numpy(data):
     A, rhs = data
@@ -179,8 +181,9 @@ def test_lu_solve_matches_numpy(data):
     # P A = L U with unit lower L and partial pivoting (|L| <= 1)
     L = np.tril(lu, -1) + np.eye(len(A))
     U = np.triu(lu)
-    np.testing.assert_allclose(L @ U, _permuted(A, piv), rtol=0,
-                               atol=1e-13 * max(1.0, np.abs(A).max()))
+    np.testing.assert_allclose(
+        L @ U, _permuted(A, piv), rtol=0, atol=1e-13 * max(1.0, np.abs(A).max())
+    )
     assert np.abs(np.tril(lu, -1)).max(initial=0.0) <= 1.0
     assert np.all((piv >= np.arange(len(A))) & (piv < len(A)))
 
@@ -214,4 +217,6 @@ def test_lu_nearly_singular_but_regular_is_accepted():
     A = np.array([[1.0, 1.0], [1.0, 1.0 + 1e-12]])
     ok, _, _, x = _lu_solve(A, [2.0, 2.0 + 1e-12])
     assert ok
-    np.testing.assert_allclose(x, [1.0, 1.0], rtol=0, atol=1e-3)  # cond 4e12: measured 0 (exact data)
+    np.testing.assert_allclose(
+        x, [1.0, 1.0], rtol=0, atol=1e-3
+    )  # cond 4e12: measured 0 (exact data)

@@ -121,7 +121,7 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
             for a in range(n):
                 val = G[nu, a] + (pk[a] if nu == 0 else 0.0)
                 R[nu * n + a] = -val
-                if abs(val) > residual:
+                if not abs(val) <= residual:  # also catches NaN
                     residual = abs(val)
         if not residual < 1e300:
             return STATUS_NONFINITE, it, np.inf, residual
@@ -227,18 +227,26 @@ def integrate_kernel(
             tk, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work
         )
         iterations_out[k] = its
+        if status == STATUS_OK:
+            assemble_gradient(
+                tk, h, qk, C, prm, b, c, Phi, D, work[0], work[1], work[2], work[3], G
+            )
+            for a in range(n):
+                if not abs(G[s, a]) < 1e300:
+                    status = STATUS_NONFINITE
         if status != STATUS_OK:
+            if k % save_every != 0:  # keep the last good state, even if not due for saving
+                t_out[saved] = tk
+                for a in range(n):
+                    q_out[saved, a] = qk[a]
+                    p_out[saved, a] = pk[a]
+                saved += 1
             return status, k, saved, worst, increment
         if residual > worst:
             worst = residual
-        assemble_gradient(
-            tk, h, qk, C, prm, b, c, Phi, D, work[0], work[1], work[2], work[3], G
-        )
         for a in range(n):
             pk[a] = G[s, a]
             qk[a] += C[s, a]
-            if not abs(pk[a]) < 1e300:
-                return STATUS_NONFINITE, k, saved, worst, increment
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             t_out[saved] = t0 + (k + 1) * h
             for a in range(n):

@@ -34,7 +34,9 @@ def discrete_gradient(
     C: NDArray,
     prm: NDArray,
 ) -> NDArray:
-    r""":math:`G^\nu = \partial L_d/\partial q^\nu` at :math:`q^\nu = q_k + C^\nu`, shape (s + 1, n).
+    r""":math:`G^\nu = \partial L_d/\partial q^\nu` at :math:`q^\nu = q_k + C^\nu`.
+
+    Returns shape (s + 1, n).
 
     ``C`` holds the control points as increments from ``qk`` (``C[0] = 0``).
     """
@@ -142,13 +144,17 @@ def integrate(
             C[0] = 0.0
         C, result = solve_step(system, tables, tk, h, qk, pk, C, prm, tol, maxiter)
         iterations_out[k] = result.iterations
-        if result.status != CONVERGED:
-            return 1, k, saved, worst, result.increment
+        status = 0 if result.status == CONVERGED else 1
+        if status == 0:
+            p_next = discrete_gradient(system, tables, tk, h, qk, C, prm)[s]
+            status = 0 if np.all(np.isfinite(p_next)) else 3
+        if status != 0:
+            if k % save_every != 0:  # keep the last good state, even if not due for saving
+                t_out[saved], q_out[saved], p_out[saved] = tk, qk, pk
+                saved += 1
+            return status, k, saved, worst, result.increment
         worst = max(worst, result.residual)
-        pk = discrete_gradient(system, tables, tk, h, qk, C, prm)[s]
-        qk = qk + C[s]
-        if not np.all(np.isfinite(pk)):
-            return 3, k, saved, worst, result.increment
+        qk, pk = qk + C[s], p_next
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             t_out[saved] = t0 + (k + 1) * h
             q_out[saved], p_out[saved] = qk, pk
