@@ -119,6 +119,7 @@ def measure_order(
     reference: Callable[[float], ArrayLike] | ArrayLike | None = None,
     window: tuple[float, float] = (1e-10, 1e-4),
     norm: str = "final",
+    dps: int | None = None,
     t0: float = 0.0,
     params: Mapping | None = None,
     backend: str = "auto",
@@ -155,6 +156,14 @@ def measure_order(
         :math:`q_{\rm ref} = q_{4N} + (q_{4N} - q_{2N})/(2^p - 1)`.
     integrator : Integrator, optional
         Reuse an integrator (and its compiled kernel) instead of building one.
+    dps : int, optional
+        Run in mpmath at ``dps`` significant digits instead of float64 (slow;
+        explicit ``step_counts``, ``v0`` and ``norm="final"`` only). This is
+        how orders 8 to 12 are measured on nonlinear problems, whose float64
+        errors above the round-off floor are still pre-asymptotic. A callable
+        ``reference`` then receives an ``mpmath.mpf`` time and must return
+        values accurate to ``dps`` digits; ``None`` gives the Richardson
+        reference in mpmath.
 
     Returns
     -------
@@ -184,6 +193,11 @@ def measure_order(
             )
     if not (np.isfinite(t_final) and t_final != 0):
         raise ValueError(f"t_final must be finite and nonzero, got {t_final}")
+    if dps is not None:
+        return _measure_order_mp(
+            system, method, q0, v0, p0, t_final, counts if not auto else None, reference, t0,
+            params, norm, dps,
+        )
     if integrator is None:
         integrator = Integrator(system, method, backend=backend)
 
@@ -285,3 +299,68 @@ def _probe_window(
             f"could not find two step counts with errors inside {window} (tried up to {n} steps)"
         )
     return np.array(counts, dtype=np.int64), np.array(errors)
+
+
+def _measure_order_mp(
+    system: LagrangianSystem,
+    method: Galerkin,
+    q0: ArrayLike,
+    v0: ArrayLike | None,
+    p0: ArrayLike | None,
+    t_final: float,
+    counts: NDArray[np.int64] | None,
+    reference: Callable | ArrayLike | None,
+    t0: float,
+    params: Mapping | None,
+    norm: str,
+    dps: int,
+) -> OrderResult:
+    """:func:`measure_order` in mpmath arithmetic (see its ``dps`` parameter)."""
+    import mpmath
+
+    from .backends.mpmath import MpIntegrator
+
+    if counts is None:
+        raise ValueError("dps mode needs explicit step_counts")
+    if v0 is None or p0 is not None:
+        raise ValueError("dps mode starts from v0 (give v0, not p0)")
+    if norm != "final":
+        raise ValueError("dps mode measures the final error only (norm='final')")
+    mp_integrator = MpIntegrator(system, method, dps=dps)
+    prm = system.parameter_vector(params)
+    q0 = np.asarray(q0, dtype=float)
+    v0 = np.asarray(v0, dtype=float)
+
+    def final_position(n_steps: int) -> list:
+        return mp_integrator.final_state(q0, v0, t0, t_final, int(n_steps), prm)[0]
+
+    with mpmath.workdps(dps):
+        if reference is None:
+            fine, finer = final_position(2 * counts[-1]), final_position(4 * counts[-1])
+            factor = mpmath.mpf(2) ** method.order - 1
+            ref = [b + (b - a) / factor for a, b in zip(fine, finer, strict=True)]
+        elif callable(reference):
+            ref = list(reference(mpmath.mpf(t0) + mpmath.mpf(t_final)))
+        else:
+            ref = [mpmath.mpf(x) for x in np.asarray(reference, dtype=float)]
+        if len(ref) != system.n:
+            raise ValueError(f"reference must give {system.n} values, got {len(ref)}")
+        errors = np.array(
+            [
+                float(max(abs(x - r) for x, r in zip(final_position(n), ref, strict=True)))
+                for n in counts
+            ]
+        )
+        size = float(max(abs(r) for r in ref))
+    step_sizes = t_final / counts
+    floor = 1e3 * counts * 10.0 ** (-dps) * (1.0 + size)
+    order, mask = fit_order(step_sizes, errors, floor)
+    return OrderResult(
+        order=order,
+        predicted=method.order,
+        errors=errors,
+        step_sizes=step_sizes,
+        step_counts=counts,
+        mask=mask,
+        reference=np.array([float(r) for r in ref]),
+    )

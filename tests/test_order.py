@@ -1,19 +1,20 @@
 """Measured orders of convergence against the predicted min(2s, u).
 
-How step sizes are chosen (theory.md §9): ``measure_order(step_counts="auto")``
-probes step counts growing by 10^(0.8/p) and fits the three finest runs whose
-error lies in the window [1e-12, 1e-4] (exact solutions) or [1e-10, 1e-4]:
-above the float64 round-off floor and the reference's accuracy (DOP853 at
-rtol 1e-13 where no exact solution exists), below the pre-asymptotic range.
-The error is the maximum over all step points (``norm="max"``), which unlike
-the error at one time cannot pass through zero.
+Degrees 1-3 run in float64. How step sizes are chosen (theory.md §9):
+``measure_order(step_counts="auto")`` probes step counts growing by 10^(0.8/p)
+and fits the three finest runs whose error lies in the window [1e-12, 1e-4]
+(exact solutions) or [1e-10, 1e-4]: above the float64 round-off floor and the
+reference's accuracy (DOP853 at rtol 1e-13 where no exact solution exists),
+below the pre-asymptotic range. The error is the maximum over all step points
+(``norm="max"``), which unlike the error at one time cannot pass through zero.
 
-Float64 limits what can be measured: for orders 8-12 on the nonlinear
-pendulum and double pendulum, the errors in that window are still
-pre-asymptotic, and on Kepler the pairwise orders still scatter between 6 and
-15 for predicted 8-12 (measured; theory.md §9 reports the same float64
-effect). Those combinations need an extended-precision run and are not
-asserted here. Asserted: every problem for s <= 3 and the oscillator at s = 4.
+Degrees 4-6 (orders 8-12) run in mpmath at 40 digits (``dps=40``): in float64
+the errors above the round-off floor are still pre-asymptotic on the nonlinear
+problems (measured: fitted 8.5-10.9 for predicted 10-12 on the pendulum and
+double pendulum, pairwise orders between 6 and 15 on Kepler). With 40 digits
+the step counts can go where the leading error term dominates: N = 8, 16, 32
+over T = 2 for the oscillator and the pendulum, N = 32, 64, 128 for Kepler
+(e = 0.5) and the double pendulum, with a Richardson reference at 2N and 4N.
 """
 
 from __future__ import annotations
@@ -133,3 +134,45 @@ def test_fit_order_masks_round_off_floor():
     order, mask = gvi.verification.fit_order(h, errors, floor=1e-12)
     assert mask.tolist() == [True, True, False, False]
     assert order == pytest.approx(4.0)
+
+
+MP_DIGITS = 40
+
+
+def _measure_mp(problem: problems.Problem, method: gvi.Galerkin, counts: list[int]):
+    return gvi.measure_order(
+        problem.system,
+        method,
+        problem.q0,
+        problem.v0,
+        t_final=2.0,
+        step_counts=counts,
+        params=problem.params,
+        dps=MP_DIGITS,
+    )
+
+
+@pytest.mark.parametrize("s", [4, 5, 6])
+@pytest.mark.parametrize("family", ["lobatto", "gauss"])
+def test_order_high_degree_pendulum_extended_precision(s, family):
+    # measured (40 digits, N = 8, 16, 32): 8.04/8.01, 10.09/9.86, 12.11/12.05 (Lobatto/Gauss)
+    method = _method(s, family, 0)
+    _assert_order(_measure_mp(problems.pendulum(), method, [8, 16, 32]), method.order)
+
+
+@pytest.mark.parametrize("s", [5, 6])
+def test_order_high_degree_oscillator_extended_precision(s):
+    # measured 10.00, 12.00 (Gauss s); errors 1e-15 .. 3e-26, far below float64's reach
+    method = _method(s, "gauss", 0)
+    problem = problems.harmonic_oscillator(1.3)
+    _assert_order(_measure_mp(problem, method, [8, 16, 32]), method.order)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["kepler", "double_pendulum"])
+@pytest.mark.parametrize("s", [4, 5, 6])
+@pytest.mark.parametrize("family", ["lobatto", "gauss"])
+def test_order_high_degree_nonlinear_extended_precision(name, s, family):
+    problem = problems.kepler(0.5) if name == "kepler" else problems.double_pendulum()
+    method = _method(s, family, 0)
+    _assert_order(_measure_mp(problem, method, [32, 64, 128]), method.order)

@@ -149,21 +149,22 @@ class MpIntegrator:
         q0: Sequence,
         v0: Sequence,
         t0: float,
-        h,
+        t_final: float,
         n_steps: int,
         params: Sequence[float] = (),
         maxiter: int = 40,
     ) -> tuple[list, list]:
-        """Positions and momenta after ``n_steps`` steps of size ``h`` from (q0, v0).
+        """Positions and momenta at ``t0 + t_final`` after ``n_steps`` equal steps from (q0, v0).
 
-        Returns mpmath numbers; the initial momentum is the continuous Legendre
-        transform of ``v0`` in extended precision.
+        Returns mpmath numbers. The step :math:`h = T/N` and the initial momentum
+        (the continuous Legendre transform of ``v0``) are formed at ``dps``
+        digits, so float inputs are taken as exact.
         """
         with mpmath.workdps(self.dps):
             n, tb = self._n, self.tables
             s1 = len(tb.d)
             s = s1 - 1
-            h = mpmath.mpf(h)
+            h = mpmath.mpf(t_final) / n_steps
             t0 = mpmath.mpf(t0)
             prm = [mpmath.mpf(x) for x in params]
             qk = [mpmath.mpf(x) for x in q0]
