@@ -10,6 +10,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -73,3 +74,14 @@ def test_every_registered_method_conserves_kepler_angular_momentum():
     for method in METHODS:
         drift = _max_drift(problem, method, h=2 * np.pi / 100)
         assert drift["rotation"] <= RELATIVE_DRIFT, (method, drift)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", METHODS, ids=repr)
+def test_every_registered_method_conserves_n_body_and_central_force_momenta(method):
+    for problem, h in (
+        (problems.n_body((2.5, 0.7, 1.9), seed=3), 0.01),
+        (problems.central_force(1.3, 0.5, 0.2), 0.05),
+    ):
+        drift = _max_drift(problem, method, h=h)
+        assert max(drift.values()) <= RELATIVE_DRIFT, (problem.name, method, drift)

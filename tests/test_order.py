@@ -176,3 +176,18 @@ def test_order_high_degree_nonlinear_extended_precision(name, s, family):
     problem = problems.kepler(0.5) if name == "kepler" else problems.double_pendulum()
     method = _method(s, family, 0)
     _assert_order(_measure_mp(problem, method, [32, 64, 128]), method.order)
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    problem=st.one_of(
+        st.builds(problems.harmonic_oscillator, omega=st.floats(0.5, 2.0)),
+        st.builds(problems.pendulum, q0=st.floats(0.2, 2.0), v0=st.floats(-0.5, 0.5)),
+    ),
+    s=st.integers(4, 6),
+    family=st.sampled_from(["lobatto", "gauss"]),
+    extra=st.integers(0, 1),
+)
+def test_order_random_problems_high_degree_extended_precision(problem, s, family, extra):
+    method = _method(s, family, extra)
+    _assert_order(_measure_mp(problem, method, [8, 16, 32]), method.order)
