@@ -12,13 +12,13 @@ from numpy.typing import NDArray
 
 from .basis import (
     equidistant_control_nodes_mp,
-    lagrange_tables,
+    lagrange_tables_mp,
     lobatto_control_nodes_mp,
 )
 from .errors import ConditioningWarning, OrderReductionWarning
 from .quadrature import QuadratureRule, gauss_legendre_mp, gauss_lobatto, gauss_lobatto_mp
 
-__all__ = ["Galerkin", "MethodTables"]
+__all__ = ["ExactTables", "Galerkin", "MethodTables"]
 
 _NODE_FAMILIES = ("lobatto", "equidistant")
 _EQUIDISTANT_MAX_DEGREE = 6
@@ -53,6 +53,18 @@ class MethodTables:
     Phi: NDArray[np.float64]
     D: NDArray[np.float64]
     extrapolation: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ExactTables:
+    """The fields of :class:`MethodTables` as (nested) lists of mpmath numbers."""
+
+    b: list
+    c: list
+    d: list
+    Phi: list
+    D: list
+    extrapolation: list
 
 
 class Galerkin:
@@ -185,26 +197,35 @@ class Galerkin:
     def __hash__(self) -> int:
         return hash((self.degree, self.quadrature, self.nodes))
 
+    def exact_tables(self, dps: int) -> ExactTables:
+        """The tables of :class:`MethodTables` as mpmath numbers at ``dps`` digits."""
+        s = self.degree
+        if self.nodes == "lobatto":
+            d = lobatto_control_nodes_mp(s, dps)
+        else:
+            d = equidistant_control_nodes_mp(s, dps)
+        q = self.quadrature
+        rule_mp = gauss_lobatto_mp if q.family == "gauss_lobatto" else gauss_legendre_mp
+        c, b = rule_mp(q.npoints, dps)
+        Phi, D = lagrange_tables_mp(d, c, dps)
+        with mpmath.workdps(dps):
+            shifted = [1 + x for x in d]
+        E, _ = lagrange_tables_mp(d, shifted, dps)
+        return ExactTables(b=b, c=c, d=d, Phi=Phi, D=D, extrapolation=E)
+
     @cached_property
     def tables(self) -> MethodTables:
         """The method's tables, computed at 40 digits and rounded once."""
-        s = self.degree
-        if self.nodes == "lobatto":
-            d_mp = lobatto_control_nodes_mp(s, _TABLE_DIGITS)
-        else:
-            d_mp = equidistant_control_nodes_mp(s, _TABLE_DIGITS)
-        q = self.quadrature
-        rule_mp = gauss_lobatto_mp if q.family == "gauss_lobatto" else gauss_legendre_mp
-        c_mp, b_mp = rule_mp(q.npoints, _TABLE_DIGITS)
-        Phi, D = lagrange_tables(d_mp, c_mp, _TABLE_DIGITS)
-        with mpmath.workdps(_TABLE_DIGITS):
-            shifted = [1 + x for x in d_mp]
-        E, _ = lagrange_tables(d_mp, shifted, _TABLE_DIGITS)
+        exact = self.exact_tables(_TABLE_DIGITS)
+
+        def rounded(x: list) -> NDArray[np.float64]:
+            return np.array(x, dtype=float)
+
         return MethodTables(
-            b=np.array([float(x) for x in b_mp]),
-            c=np.array([float(x) for x in c_mp]),
-            d=np.array([float(x) for x in d_mp]),
-            Phi=Phi,
-            D=D,
-            extrapolation=E,
+            b=rounded(exact.b),
+            c=rounded(exact.c),
+            d=rounded(exact.d),
+            Phi=rounded(exact.Phi),
+            D=rounded(exact.D),
+            extrapolation=rounded(exact.extrapolation),
         )

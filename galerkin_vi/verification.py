@@ -195,8 +195,18 @@ def measure_order(
         raise ValueError(f"t_final must be finite and nonzero, got {t_final}")
     if dps is not None:
         return _measure_order_mp(
-            system, method, q0, v0, p0, t_final, counts if not auto else None, reference, t0,
-            params, norm, dps,
+            system,
+            method,
+            q0,
+            v0,
+            p0,
+            t_final,
+            counts if not auto else None,
+            reference,
+            t0,
+            params,
+            norm,
+            dps,
         )
     if integrator is None:
         integrator = Integrator(system, method, backend=backend)

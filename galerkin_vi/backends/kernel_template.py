@@ -42,20 +42,27 @@ STATUS_NONFINITE = 3
 
 
 @kernel
+def interpolate(i, h, qk, C, Phi, D, Q, V):
+    """Q = q_k + sum_nu Phi[i, nu] C[nu] and V = sum_nu D[i, nu] C[nu] / h at quadrature point i."""
+    s1, n = C.shape
+    for a in range(n):
+        qa = 0.0
+        va = 0.0
+        for nu in range(1, s1):
+            qa += Phi[i, nu] * C[nu, a]
+            va += D[i, nu] * C[nu, a]
+        Q[a] = qk[a] + qa
+        V[a] = va / h
+
+
+@kernel
 def assemble_gradient(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G):
     """G[nu] = dL_d/dq^nu for all nu = 0..s."""
     r = b.shape[0]
     s1, n = C.shape
     G[:, :] = 0.0
     for i in range(r):
-        for a in range(n):
-            qa = 0.0
-            va = 0.0
-            for nu in range(1, s1):
-                qa += Phi[i, nu] * C[nu, a]
-                va += D[i, nu] * C[nu, a]
-            Q[a] = qk[a] + qa
-            V[a] = va / h
+        interpolate(i, h, qk, C, Phi, D, Q, V)
         point_gradient(t0 + c[i] * h, Q, V, prm, Lq, Lv)
         for nu in range(s1):
             wq = b[i] * h * Phi[i, nu]
@@ -73,14 +80,7 @@ def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv
     G[:, :] = 0.0
     K[:, :] = 0.0
     for i in range(r):
-        for a in range(n):
-            qa = 0.0
-            va = 0.0
-            for nu in range(1, s1):
-                qa += Phi[i, nu] * C[nu, a]
-                va += D[i, nu] * C[nu, a]
-            Q[a] = qk[a] + qa
-            V[a] = va / h
+        interpolate(i, h, qk, C, Phi, D, Q, V)
         point_hessian(t0 + c[i] * h, Q, V, prm, Lq, Lv, Lqq, Lqv, Lvv)
         for nu in range(s1):
             wq = b[i] * h * Phi[i, nu]

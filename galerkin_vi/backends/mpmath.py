@@ -11,51 +11,17 @@ Newton iteration for 12 unknowns) and meant for order studies only.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 import mpmath
 import sympy as sp
 
-from ..basis import (
-    equidistant_control_nodes_mp,
-    lagrange_tables_mp,
-    lobatto_control_nodes_mp,
-)
 from ..errors import ConvergenceError
 from ..method import Galerkin
-from ..quadrature import gauss_legendre_mp, gauss_lobatto_mp
 from ..system import LagrangianSystem
 
 __all__ = ["MpIntegrator"]
 
 _GUARD_DIGITS = 10
-
-
-@dataclass(frozen=True)
-class _MpTables:
-    b: list
-    c: list
-    d: list
-    Phi: list
-    D: list
-    E: list
-
-
-def _tables(method: Galerkin, dps: int) -> _MpTables:
-    digits = dps + _GUARD_DIGITS
-    s = method.degree
-    if method.nodes == "lobatto":
-        d = lobatto_control_nodes_mp(s, digits)
-    else:
-        d = equidistant_control_nodes_mp(s, digits)
-    q = method.quadrature
-    rule = gauss_lobatto_mp if q.family == "gauss_lobatto" else gauss_legendre_mp
-    c, b = rule(q.npoints, digits)
-    Phi, D = lagrange_tables_mp(d, c, digits)
-    with mpmath.workdps(digits):
-        shifted = [1 + x for x in d]
-    E, _ = lagrange_tables_mp(d, shifted, digits)
-    return _MpTables(b=b, c=c, d=d, Phi=Phi, D=D, E=E)
 
 
 class MpIntegrator:
@@ -73,8 +39,7 @@ class MpIntegrator:
         self.system = system
         self.method = method
         self.dps = int(dps)
-        with mpmath.workdps(self.dps + _GUARD_DIGITS):
-            self.tables = _tables(method, self.dps)
+        self.tables = method.exact_tables(self.dps + _GUARD_DIGITS)
         p = system.pieces
         args = list(system.arguments)
         n = system.n
@@ -177,7 +142,8 @@ class MpIntegrator:
                 if k > 0:
                     C = [
                         [
-                            mpmath.fsum(tb.E[nu][mu] * C[mu][a] for mu in range(1, s1)) - C[s][a]
+                            mpmath.fsum(tb.extrapolation[nu][mu] * C[mu][a] for mu in range(1, s1))
+                            - C[s][a]
                             for a in range(n)
                         ]
                         for nu in range(s1)
