@@ -45,7 +45,10 @@ class Integrator:
         Relative Newton increment tolerance; below it the iteration continues
         until the increment is zero or stops decreasing (no round-off drift).
     maxiter : int
-        Newton iteration cap per step.
+        Newton iteration cap per step (at most 1000).
+    specialize : bool
+        Let the structure of the problem pick a cheaper time loop (see
+        :attr:`kernel_path`); ``False`` forces the general Newton loop.
 
     Notes
     -----
@@ -69,6 +72,7 @@ class Integrator:
         backend: str = "auto",
         tol: float = 1e-14,
         maxiter: int = 30,
+        specialize: bool = True,
     ) -> None:
         if not isinstance(system, LagrangianSystem):
             raise TypeError(f"system must be a LagrangianSystem, got {type(system).__name__}")
@@ -77,13 +81,46 @@ class Integrator:
             raise TypeError(f"method must be a Galerkin method, got {type(method).__name__}")
         if not (isinstance(tol, numbers.Real) and 0 < tol < 1):
             raise ValueError(f"tol must be a real number in (0, 1), got {tol!r}")
-        if isinstance(maxiter, bool) or not isinstance(maxiter, numbers.Integral) or maxiter < 1:
-            raise ValueError(f"maxiter must be a positive int, got {maxiter!r}")
+        if (
+            isinstance(maxiter, bool)
+            or not isinstance(maxiter, numbers.Integral)
+            or not 1 <= maxiter <= 1000
+        ):
+            raise ValueError(f"maxiter must be an int in [1, 1000], got {maxiter!r}")
         self.system = system
         self.method = method
         self.backend = resolve_backend(backend)
         self.tol = float(tol)
         self.maxiter = int(maxiter)
+        self.specialize = bool(specialize)
+
+    @property
+    def kernel_path(self) -> str:
+        """Which time loop runs: ``"explicit"``, ``"linear"`` or ``"newton"``.
+
+        With the compiled backend and ``specialize=True`` (default):
+
+        - ``"explicit"``: degree 1 with two Lobatto points on a separable
+          :math:`L = \tfrac12 v^TMv + a(t)\cdot v - V(t, q)` (constant :math:`M`) is
+          Störmer–Verlet in closed form, with :math:`M^{-1}` formed once and no Newton;
+        - ``"linear"``: a Lagrangian quadratic in :math:`(q, v)` (constant
+          Hessian) has linear stage equations: one LU factorisation per run and
+          one triangular solve per step;
+        - ``"newton"``: the general Newton iteration (also the NumPy backend).
+        """
+        if self.backend != "numba" or not self.specialize:
+            return "newton"
+        structure, method = self.system.structure, self.method
+        if (
+            structure.separable
+            and method.degree == 1
+            and method.quadrature.family == "gauss_lobatto"
+            and method.quadrature.npoints == 2
+        ):
+            return "explicit"
+        if structure.quadratic:
+            return "linear"
+        return "newton"
 
     def __repr__(self) -> str:
         return f"Integrator({self.system!r}, {self.method!r}, backend={self.backend!r})"
@@ -207,10 +244,27 @@ class Integrator:
         t_out = np.empty(n_saved)
         q_out = np.empty((n_saved, system.n))
         p_out = np.empty((n_saved, system.n))
-        iterations = np.zeros(n_steps, dtype=np.int64)
+        iterations = np.zeros(n_steps, dtype=np.int16)
         tb = self.method.tables
         args = (q0, p0_arr, v0_arr, t0, h, n_steps, int(save_every), prm)
-        if self.backend == "numba":
+        outputs = (t_out, q_out, p_out)
+        path = self.kernel_path
+        if path == "explicit":
+            n = system.n
+            mass = system.evaluate("Lvv", t0, q0, np.zeros(n), prm).reshape(n, n)
+            if not is_regular(mass):
+                raise DegenerateLagrangianError(f"the mass matrix d2L/dv2 = {mass} is singular")
+            status, done, saved = self._kernels.verlet_kernel(
+                q0, p0_arr, t0, h, n_steps, int(save_every), prm, np.linalg.inv(mass), *outputs
+            )
+            worst, increment = 0.0, np.nan
+        elif path == "linear":
+            status, done, saved = self._kernels.linear_kernel(
+                *args, tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation, *outputs
+            )
+            iterations[:done] = 1
+            worst, increment = 0.0, np.nan
+        elif self.backend == "numba":
             status, done, saved, worst, increment = self._kernels.integrate_kernel(
                 *args,
                 tb.b,
@@ -221,14 +275,12 @@ class Integrator:
                 tb.extrapolation,
                 self.tol,
                 self.maxiter,
-                t_out,
-                q_out,
-                p_out,
+                *outputs,
                 iterations,
             )
         else:
             status, done, saved, worst, increment = numpy_backend.integrate(
-                system, tb, *args, self.tol, self.maxiter, t_out, q_out, p_out, iterations
+                system, tb, *args, self.tol, self.maxiter, *outputs, iterations
             )
         traj = Trajectory(
             t=t_out[:saved],

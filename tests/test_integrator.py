@@ -259,11 +259,14 @@ def test_step_agrees_with_step_del(double_pendulum, s, family, backend):
 def test_numpy_and_numba_backends_agree(problems, name, method):
     system, q0, v0, h = problems[name]
     runs = [
-        gvi.Integrator(system, method, backend=backend).integrate(q0, v0, h=h, n_steps=100)
+        # the general Newton loop in both; specialised loops are compared in test_specialized
+        gvi.Integrator(system, method, backend=backend, specialize=False).integrate(
+            q0, v0, h=h, n_steps=100
+        )
         for backend in BACKENDS
     ]
-    assert np.abs(runs[0].q - runs[1].q).max() <= 1e-12  # measured <= 3.2e-13 (s=3 equidistant)
-    assert np.abs(runs[0].p - runs[1].p).max() <= 1e-12  # measured <= 3.5e-13
+    assert np.abs(runs[0].q - runs[1].q).max() <= 1e-13  # measured <= 3.2e-13 before increments
+    assert np.abs(runs[0].p - runs[1].p).max() <= 1e-13  # (control points as increments)
     np.testing.assert_array_equal(runs[0].t, runs[1].t)
     assert runs[0].newton_iterations.shape == runs[1].newton_iterations.shape == (100,)
     assert (
@@ -428,8 +431,8 @@ def test_integrate_requires_keyword_h_and_n_steps(pendulum):
         (dict(tol=-1e-14), ValueError, "tol must be"),
         (dict(tol=np.nan), ValueError, "tol must be"),
         (dict(tol="1e-14"), ValueError, "tol must be"),
-        (dict(maxiter=0), ValueError, "maxiter must be a positive int"),
-        (dict(maxiter=2.0), ValueError, "maxiter must be a positive int"),
+        (dict(maxiter=0), ValueError, "maxiter must be an int in"),
+        (dict(maxiter=2.0), ValueError, "maxiter must be an int in"),
         (dict(method="galerkin"), TypeError, "method must be a Galerkin method"),
     ],
 )

@@ -32,7 +32,7 @@ from ..newton import (
     lu_solve_inplace,
     newton_status,
 )
-from .pointwise_interface import HAS_LQV, kernel, point_gradient, point_hessian
+from .pointwise_interface import AUTONOMOUS, HAS_LQV, kernel, point_gradient, point_hessian
 
 # ---- kernel ----
 STATUS_OK = 0
@@ -63,7 +63,7 @@ def assemble_gradient(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G):
     G[:, :] = 0.0
     for i in range(r):
         interpolate(i, h, qk, C, Phi, D, Q, V)
-        point_gradient(t0 + c[i] * h, Q, V, prm, Lq, Lv)
+        point_gradient(0.0 if AUTONOMOUS else t0 + c[i] * h, Q, V, prm, Lq, Lv)
         for nu in range(s1):
             wq = b[i] * h * Phi[i, nu]
             wv = b[i] * D[i, nu]
@@ -81,7 +81,7 @@ def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv
     K[:, :] = 0.0
     for i in range(r):
         interpolate(i, h, qk, C, Phi, D, Q, V)
-        point_hessian(t0 + c[i] * h, Q, V, prm, Lq, Lv, Lqq, Lqv, Lvv)
+        point_hessian(0.0 if AUTONOMOUS else t0 + c[i] * h, Q, V, prm, Lq, Lv, Lqq, Lqv, Lvv)
         for nu in range(s1):
             wq = b[i] * h * Phi[i, nu]
             wv = b[i] * D[i, nu]
@@ -254,3 +254,146 @@ def integrate_kernel(
                 p_out[saved, a] = pk[a]
             saved += 1
     return STATUS_OK, n_steps, saved, worst, 0.0
+
+
+@kernel
+def save_row(saved, t, qk, pk, t_out, q_out, p_out):
+    """Store (t, q, p) in row ``saved`` of the outputs and return the next free row."""
+    t_out[saved] = t
+    for a in range(qk.shape[0]):
+        q_out[saved, a] = qk[a]
+        p_out[saved, a] = pk[a]
+    return saved + 1
+
+
+@kernel
+def verlet_kernel(q0, p0, t0, h, n_steps, save_every, prm, Minv, t_out, q_out, p_out):
+    r"""Degree 1, two Lobatto points, separable :math:`L = \tfrac12 v^TMv + a(t)\cdot v - V(t, q)`.
+
+    The stage equation is linear in :math:`q_{k+1}` and solved in closed form
+    (Störmer–Verlet), with :math:`M^{-1}` computed once:
+
+    .. math::
+
+        v = M^{-1}\big(p_k + \tfrac h2 L_q(t_k, q_k) - \bar a\big),\quad
+        q_{k+1} = q_k + h v,\quad
+        p_{k+1} = p_k + \tfrac h2 \big(L_q(t_k, q_k) + L_q(t_{k+1}, q_{k+1})\big),
+
+    with :math:`\bar a = \tfrac12(a(t_k) + a(t_{k+1}))` and :math:`a(t) = L_v(t, q, 0)`.
+    Returns (status, steps completed, rows saved).
+    """
+    n = q0.shape[0]
+    qk = q0.copy()
+    pk = p0.copy()
+    zero = np.zeros(n)
+    lq = np.zeros(n)
+    lq_next = np.zeros(n)
+    a0 = np.zeros(n)
+    a1 = np.zeros(n)
+    rhs = np.zeros(n)
+    saved = save_row(0, t0, qk, pk, t_out, q_out, p_out)
+    point_gradient(t0, qk, zero, prm, lq, a0)
+    point_gradient(t0, qk, zero, prm, lq_next, a1)
+    for k in range(n_steps):
+        tk = t0 + k * h
+        tk1 = t0 + (k + 1) * h
+        if not AUTONOMOUS:
+            point_gradient(tk, qk, zero, prm, lq, a0)
+            point_gradient(tk1, qk, zero, prm, lq_next, a1)
+        for a in range(n):
+            rhs[a] = pk[a] + 0.5 * h * lq[a] - 0.5 * (a0[a] + a1[a])
+        for a in range(n):
+            acc = 0.0
+            for b in range(n):
+                acc += Minv[a, b] * rhs[b]
+            qk[a] += h * acc
+        point_gradient(tk1, qk, zero, prm, lq_next, a1)
+        finite = True
+        for a in range(n):
+            pk[a] += 0.5 * h * (lq[a] + lq_next[a])
+            lq[a] = lq_next[a]
+            if not abs(pk[a]) < 1e300 or not abs(qk[a]) < 1e300:
+                finite = False
+        if not finite:
+            return STATUS_NONFINITE, k, saved
+        if (k + 1) % save_every == 0 or k + 1 == n_steps:
+            saved = save_row(saved, tk1, qk, pk, t_out, q_out, p_out)
+    return STATUS_OK, n_steps, saved
+
+
+@kernel
+def linear_kernel(
+    q0,
+    p0,
+    v0,
+    t0,
+    h,
+    n_steps,
+    save_every,
+    prm,
+    b,
+    c,
+    d,
+    Phi,
+    D,
+    E,
+    t_out,
+    q_out,
+    p_out,
+):
+    """Quadratic L: the stage equations are linear with a constant matrix.
+
+    The Jacobian K is assembled and LU-factorised once per run; each step is
+    one residual evaluation at the extrapolated guess and one triangular solve,
+    exact up to round-off. Returns (status, steps completed, rows saved).
+    """
+    n = q0.shape[0]
+    s1 = d.shape[0]
+    s = s1 - 1
+    work = make_work(s, n)
+    Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv = work
+    C = np.zeros((s1, n))
+    C_prev = np.zeros((s1, n))
+    qk = q0.copy()
+    pk = p0.copy()
+    for a in range(n):
+        for nu in range(s1):
+            C[nu, a] = d[nu] * h * v0[a]
+    assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K)
+    if not lu_factor_inplace(K, piv):
+        return STATUS_SINGULAR, 0, save_row(0, t0, qk, pk, t_out, q_out, p_out)
+    saved = save_row(0, t0, qk, pk, t_out, q_out, p_out)
+    for k in range(n_steps):
+        tk = t0 + k * h
+        if k > 0:
+            for nu in range(s1):
+                for a in range(n):
+                    C_prev[nu, a] = C[nu, a]
+            for nu in range(s1):
+                for a in range(n):
+                    acc = 0.0
+                    for mu in range(1, s1):
+                        acc += E[nu, mu] * C_prev[mu, a]
+                    C[nu, a] = acc - C_prev[s, a]
+            for a in range(n):
+                C[0, a] = 0.0
+        assemble_gradient(tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
+        for nu in range(s):
+            for a in range(n):
+                R[nu * n + a] = -(G[nu, a] + (pk[a] if nu == 0 else 0.0))
+        lu_solve_inplace(K, piv, R)
+        for nu in range(1, s1):
+            for a in range(n):
+                C[nu, a] += R[(nu - 1) * n + a]
+        assemble_gradient(tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
+        finite = True
+        for a in range(n):
+            pk[a] = G[s, a]
+            qk[a] += C[s, a]
+            if not abs(pk[a]) < 1e300 or not abs(qk[a]) < 1e300:
+                finite = False
+        if not finite:
+            return STATUS_NONFINITE, k, saved
+        if (k + 1) % save_every == 0 or k + 1 == n_steps:
+            saved = save_row(saved, t0 + (k + 1) * h, qk, pk, t_out, q_out, p_out)
+    return STATUS_OK, n_steps, saved

@@ -14,6 +14,7 @@ written: the caller zeroes those arrays once.
 from __future__ import annotations
 
 HAS_LQV = True  # False when d2L/dq dv is identically zero: the kernel skips that block
+AUTONOMOUS = False  # True when L does not depend on t: no time is formed or passed
 
 
 def kernel(function):
