@@ -96,7 +96,7 @@ class Integrator:
 
     @property
     def kernel_path(self) -> str:
-        """Which time loop runs: ``"explicit"``, ``"linear"`` or ``"newton"``.
+        r"""Which time loop runs: ``"explicit"``, ``"linear"`` or ``"newton"``.
 
         With the compiled backend and ``specialize=True`` (default):
 

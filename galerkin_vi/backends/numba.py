@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import importlib.util
+import pickle
+import pickletools
 import sys
+from pathlib import Path
 from types import ModuleType
 
 from ..codegen import KernelSpec, render_module, signature
 from .cache import entry_path, read_entry, write_entry
 
-__all__ = ["available", "load_kernels", "numba_version"]
+__all__ = ["available", "discard_unreadable_numba_cache", "load_kernels", "numba_version"]
 
 
 def numba_version() -> str | None:
@@ -39,6 +42,7 @@ def load_kernels(spec: KernelSpec) -> ModuleType:
     if read_entry(key) is None:
         write_entry(key, render_module(spec, key))
     path = entry_path(key)
+    discard_unreadable_numba_cache(path)
     loader_spec = importlib.util.spec_from_file_location(module_name, path)
     assert loader_spec is not None and loader_spec.loader is not None
     module = importlib.util.module_from_spec(loader_spec)
@@ -49,3 +53,33 @@ def load_kernels(spec: KernelSpec) -> ModuleType:
         del sys.modules[module_name]
         raise
     return module
+
+
+def discard_unreadable_numba_cache(module_path: Path) -> list[Path]:
+    """Delete numba cache files of ``module_path`` that cannot be read back.
+
+    numba stores each compiled function as an index (``.nbi``: a pickled
+    version, then pickled data, both unpickled here) and data files (``.nbc``:
+    pickles, only parsed here). A truncated
+    or overwritten file makes numba raise at the first call instead of
+    recompiling; deleting it makes numba recompile and rewrite it. Returns the
+    deleted paths.
+    """
+    folder = module_path.parent / "__pycache__"
+    removed: list[Path] = []
+    for index in sorted(folder.glob(f"{module_path.stem}.*.nbi")):
+        try:
+            with open(index, "rb") as fh:
+                pickle.load(fh)
+                pickle.loads(fh.read())
+            for data in folder.glob(index.name[: -len(".nbi")] + ".*.nbc"):
+                # parse the pickle stream without running it: it names the kernel
+                # module, which is not importable until this load finishes
+                for _opcode in pickletools.genops(data.read_bytes()):
+                    pass
+        except Exception:  # noqa: BLE001 - any failure to read means: rebuild
+            stem = index.name[: -len(".nbi")]
+            for stale in [index, *folder.glob(stem + ".*.nbc")]:
+                stale.unlink(missing_ok=True)
+                removed.append(stale)
+    return removed

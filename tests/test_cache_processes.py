@@ -1,0 +1,70 @@
+"""The kernel cache across processes: concurrent builds, warm loads, corrupt numba files."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+
+SCRIPT = textwrap.dedent(
+    """
+    import json, sys, time
+    import sympy as sp
+    import galerkin_vi as gvi
+    start = time.perf_counter()
+    # a Lagrangian of its own, so that no other test has compiled it
+    q, v, w = sp.symbols("q v w")
+    system = gvi.LagrangianSystem(v**2 / 2 - w * q**4 / 4 - q**2 / 2, [q], [v], params={w: 0.3})
+    integrator = gvi.Integrator(system, gvi.Galerkin(2))
+    traj = integrator.integrate([1.0], [0.1], h=0.05, n_steps=200)
+    print(json.dumps({"q": traj.q[-1].tolist(), "p": traj.p[-1].tolist(),
+                      "seconds": time.perf_counter() - start}))
+    """
+)
+
+
+def _run(cache: Path, count: int) -> list[dict]:
+    env = {**os.environ, "GALERKIN_VI_CACHE_DIR": str(cache)}
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", SCRIPT],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for _ in range(count)
+    ]
+    results = []
+    for proc in procs:
+        out, err = proc.communicate(timeout=600)
+        assert proc.returncode == 0, err
+        results.append(json.loads(out.strip().splitlines()[-1]))
+    return results
+
+
+def test_two_processes_build_the_same_entry_at_once(tmp_path):
+    first, second = _run(tmp_path, 2)
+    assert first["q"] == second["q"] and first["p"] == second["p"]
+    modules = list(tmp_path.rglob("gvi_*.py"))
+    assert len(modules) == 1  # one entry, no leftover temporary files
+    assert not list(tmp_path.rglob("*.tmp"))
+    # a third process loads what they built and computes the same numbers
+    (third,) = _run(tmp_path, 1)
+    assert third["q"] == first["q"]
+
+
+def test_corrupt_numba_cache_files_are_rebuilt(tmp_path):
+    (reference,) = _run(tmp_path, 1)
+    numba_files = [p for p in tmp_path.rglob("*") if p.suffix in (".nbi", ".nbc")]
+    assert numba_files, "numba wrote no cache files beside the module"
+    for path in numba_files:
+        path.write_bytes(b"\0garbage" * 7)
+    (again,) = _run(tmp_path, 1)
+    np.testing.assert_array_equal(again["q"], reference["q"])
+    np.testing.assert_array_equal(again["p"], reference["p"])
