@@ -134,6 +134,7 @@ def integrate(
     s = d.size - 1
     C = d[:, None] * h * v0[None, :]
     qk, pk = q0.copy(), p0.copy()
+    q_lost = np.zeros_like(q0)
     t_out[0], q_out[0], p_out[0] = t0, q0, p0
     saved, worst = 1, 0.0
     for k in range(n_steps):
@@ -154,7 +155,11 @@ def integrate(
                 saved += 1
             return status, k, saved, worst, result.increment
         worst = max(worst, result.residual)
-        qk, pk = qk + C[s], p_next
+        # compensated (Kahan) summation of the position, as in the compiled kernel
+        y = C[s] - q_lost
+        total = qk + y
+        q_lost = (total - qk) - y
+        qk, pk = total, p_next
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             t_out[saved] = t0 + (k + 1) * h
             q_out[saved], p_out[saved] = qk, pk
