@@ -39,6 +39,8 @@ STATUS_OK = 0
 STATUS_NEWTON_FAILED = 1
 STATUS_SINGULAR = 2
 STATUS_NONFINITE = 3
+# below this relative increment Newton has converged to a few ulps after one more step
+FREEZE = 1e-8
 
 
 @kernel
@@ -107,6 +109,11 @@ def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv
 def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
     """Newton on the stage equations; C[1:] holds the guess on entry, the solution on exit.
 
+    Once an increment is below ``FREEZE * (1 + |C|)`` the next one is at round-off
+    level, so the remaining iterations (run until the increment is zero or stops
+    decreasing) reuse the last LU factors and evaluate only the gradient:
+    a simplified Newton step costs about a third of a full one.
+
     Returns (status, iterations, last increment, last residual max-norm).
     """
     Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv = work
@@ -114,8 +121,12 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
     s = s1 - 1
     previous = np.inf
     residual = np.inf
+    frozen = False
     for it in range(1, maxiter + 1):
-        assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K)
+        if frozen:
+            assemble_gradient(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
+        else:
+            assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K)
         residual = 0.0
         for nu in range(s):
             for a in range(n):
@@ -125,7 +136,7 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
                     residual = abs(val)
         if not residual < 1e300:
             return STATUS_NONFINITE, it, np.inf, residual
-        if not lu_factor_inplace(K, piv):
+        if not frozen and not lu_factor_inplace(K, piv):
             return STATUS_SINGULAR, it, np.inf, residual
         lu_solve_inplace(K, piv, R)
         increment = 0.0
@@ -142,6 +153,8 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
             return STATUS_OK, it, increment, residual
         if status != CONTINUE:
             return STATUS_NEWTON_FAILED, it, increment, residual
+        if increment <= FREEZE * (1.0 + size):
+            frozen = True
         previous = increment
     return STATUS_NEWTON_FAILED, maxiter, previous, residual
 

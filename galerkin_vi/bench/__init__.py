@@ -1,0 +1,120 @@
+"""Benchmark suite: galerkin_vi against hand-written numba kernels and scipy's solve_ivp.
+
+Entry points
+------------
+:func:`run`
+    Run the work-precision benchmark and the per-step comparison; return the
+    results as plain data and optionally write results.json, results.md and
+    (when matplotlib is importable) PNG work-precision plots to a folder.
+:func:`add_arguments`, :func:`main`
+    The ``galerkin-vi bench [--quick] [--output DIR]`` sub-command: ``add_arguments``
+    fills an ``argparse`` (sub)parser, ``main(args)`` runs it and returns an exit status.
+
+See :mod:`galerkin_vi.bench.workprecision` for what is measured and
+:mod:`galerkin_vi.bench.handwritten` for the hand-written peers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from .workprecision import (
+    BenchConfig,
+    full_config,
+    quick_config,
+    run_benchmark,
+    tiny_config,
+    write_outputs,
+)
+
+__all__ = [
+    "BenchConfig",
+    "add_arguments",
+    "full_config",
+    "main",
+    "quick_config",
+    "run",
+    "tiny_config",
+]
+
+DEFAULT_OUTPUT = "bench-results"
+
+
+def run(
+    quick: bool = False,
+    output: str | None = None,
+    *,
+    config: BenchConfig | None = None,
+    problems: tuple[str, ...] | None = None,
+    verbose: bool = True,
+) -> dict:
+    """Run the benchmark and return its results.
+
+    Parameters
+    ----------
+    quick : bool
+        The quick configuration (under 2 minutes including compilation) instead
+        of the full one (under 30 minutes).
+    output : str, optional
+        Folder for results.json, results.md and PNG plots; nothing is written when None.
+    config : BenchConfig, optional
+        Overrides the configuration chosen by ``quick``.
+    problems : tuple of str, optional
+        Subset of ``("pendulum", "kepler")``.
+    verbose : bool
+        Print progress.
+
+    Returns
+    -------
+    dict
+        ``{"meta": ..., "problems": {name: {"curves", "time_to_error",
+        "best_galerkin_vi", "ratio_peer_over_best", ...}}, "per_step": [...],
+        "files": [...]}``.
+    """
+    cfg = config if config is not None else (quick_config() if quick else full_config())
+    if problems is not None:
+        cfg = BenchConfig(**{**cfg.__dict__, "problems": tuple(problems)})
+
+    def log(msg: str) -> None:
+        if verbose:
+            print(msg, flush=True)
+
+    results = run_benchmark(cfg, quick=quick, log=log)
+    results["files"] = write_outputs(results, output, log=log) if output else []
+    return results
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Add the ``bench`` options to ``parser`` (and set ``run=main`` as its default action)."""
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="a short run (under 2 minutes, compilation included) instead of the full one",
+    )
+    parser.add_argument(
+        "--output",
+        metavar="DIR",
+        default=DEFAULT_OUTPUT,
+        help=f"folder for results.json, results.md and PNG plots (default: {DEFAULT_OUTPUT})",
+    )
+    parser.add_argument(
+        "--problems",
+        nargs="+",
+        choices=("pendulum", "kepler"),
+        default=None,
+        help="benchmark problems (default: both)",
+    )
+    parser.set_defaults(run=main)
+    return parser
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run ``galerkin-vi bench`` with parsed ``args``; return the exit status (0)."""
+    start = time.perf_counter()
+    problems = tuple(args.problems) if getattr(args, "problems", None) else None
+    results = run(quick=args.quick, output=args.output, problems=problems)
+    for path in results["files"]:
+        print(f"wrote {path}")
+    print(f"benchmark finished in {time.perf_counter() - start:.1f} s")
+    return 0

@@ -327,28 +327,48 @@ def _integrated_lagrange(nodes, upper):
     return out
 
 
-def _legendre_roots_mp(s: int) -> list:
-    """Roots of the Legendre polynomial of degree s on [-1, 1], ascending."""
+def _legendre(n: int, x):
+    """(P_n(x), P_n'(x), P_n''(x)) by the three-term recurrence (mpmath), |x| < 1."""
+    p0, p1 = mpmath.mpf(1), x
+    if n == 0:
+        return p0, mpmath.mpf(0), mpmath.mpf(0)
+    for k in range(2, n + 1):
+        p0, p1 = p1, ((2 * k - 1) * x * p1 - (k - 1) * p0) / k
+    dp = n * (x * p1 - p0) / (x * x - 1)
+    d2p = (2 * x * dp - n * (n + 1) * p1) / (1 - x * x)
+    return p1, dp, d2p
+
+
+def _newton_roots(f, guesses) -> list:
+    """Newton's method from each guess; f(x) -> (value, derivative)."""
     roots = []
-    for i in range(1, s + 1):
-        guess = mpmath.cos(mpmath.pi * (i - mpmath.mpf(1) / 4) / (s + mpmath.mpf(1) / 2))
-        roots.append(mpmath.findroot(lambda z: mpmath.legendre(s, z), guess))
+    for x in guesses:
+        for _ in range(100):
+            val, der = f(x)
+            dx = val / der
+            x -= dx
+            if abs(dx) < mpmath.mpf(10) ** (-mpmath.mp.dps + 3):
+                break
+        roots.append(x)
     return sorted(roots)
 
 
 def _gauss_nodes_mp(s: int) -> list:
-    """Gauss–Legendre nodes on [0, 1] (roots of the shifted Legendre polynomial)."""
-    return [(1 + x) / 2 for x in _legendre_roots_mp(s)]
+    """Gauss–Legendre nodes on [0, 1]: roots of P_s mapped by c = (1 + x)/2."""
+    guesses = [
+        mpmath.cos(mpmath.pi * (i - mpmath.mpf(1) / 4) / (s + mpmath.mpf(1) / 2))
+        for i in range(1, s + 1)
+    ]
+    roots = _newton_roots(lambda x: _legendre(s, x)[:2], guesses)
+    return [(1 + x) / 2 for x in roots]
 
 
 def _lobatto_nodes_mp(r: int) -> list:
     """Gauss–Lobatto nodes on [0, 1]: 0, 1 and the roots of P'_{r-1}."""
-    interior = []
     n = r - 1
-    for i in range(1, r - 1):
-        guess = -mpmath.cos(mpmath.pi * i / n)
-        interior.append(mpmath.findroot(lambda z: mpmath.diff(lambda u: mpmath.legendre(n, u), z), guess))
-    return [mpmath.mpf(0)] + sorted((1 + x) / 2 for x in interior) + [mpmath.mpf(1)]
+    guesses = [-mpmath.cos(mpmath.pi * i / n) for i in range(1, n)]
+    roots = _newton_roots(lambda x: _legendre(n, x)[1:], guesses)
+    return [mpmath.mpf(0)] + [(1 + x) / 2 for x in roots] + [mpmath.mpf(1)]
 
 
 @cache
@@ -698,9 +718,24 @@ def run_gauss(
     q0, p0, q_out, p_out = _buffers(q0, p0, n_steps, save_every)
     its = np.zeros(n_steps, dtype=np.int64)
     status, done, saved = gauss_collocation(
-        problem, q0, p0, float(h), int(n_steps), int(save_every),
-        tb.A2, tb.bA, tb.b, tb.c, tb.E, bool(full), float(tol), int(maxiter), q_out, p_out, its,
-    )  # fmt: skip
+        problem,
+        q0,
+        p0,
+        float(h),
+        int(n_steps),
+        int(save_every),
+        tb.A2,
+        tb.bA,
+        tb.b,
+        tb.c,
+        tb.E,
+        bool(full),
+        float(tol),
+        int(maxiter),
+        q_out,
+        p_out,
+        its,
+    )
     _check(status, done, f"gauss_collocation(s={s})")
     return KernelRun(q_out[:saved], p_out[:saved], its)
 
@@ -721,8 +756,21 @@ def run_lobatto(
     q0, p0, q_out, p_out = _buffers(q0, p0, n_steps, save_every)
     its = np.zeros(n_steps, dtype=np.int64)
     status, done, saved = lobatto_iiia_iiib(
-        problem, q0, p0, float(h), int(n_steps), int(save_every),
-        tb.AB, tb.b, tb.c, tb.E, float(tol), int(maxiter), q_out, p_out, its,
-    )  # fmt: skip
+        problem,
+        q0,
+        p0,
+        float(h),
+        int(n_steps),
+        int(save_every),
+        tb.AB,
+        tb.b,
+        tb.c,
+        tb.E,
+        float(tol),
+        int(maxiter),
+        q_out,
+        p_out,
+        its,
+    )
     _check(status, done, f"lobatto_iiia_iiib(r={r})")
     return KernelRun(q_out[:saved], p_out[:saved], its)
