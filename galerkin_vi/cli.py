@@ -1,4 +1,8 @@
-"""The ``galerkin-vi`` command line: ``galerkin-vi verify`` runs the order study."""
+"""The ``galerkin-vi`` command line.
+
+``galerkin-vi verify`` runs the order study (the project's main job);
+``galerkin-vi bench`` the work-precision benchmark.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +12,7 @@ import time
 import warnings
 from collections.abc import Sequence
 
-from . import problems
+from . import bench, problems
 from .errors import OrderReductionWarning
 from .method import Galerkin
 from .quadrature import gauss_legendre, gauss_lobatto
@@ -123,6 +127,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     verify.add_argument("--families", nargs="+", choices=sorted(FAMILIES), default=list(FAMILIES))
     verify.set_defaults(run=_verify)
+    bench_parser = sub.add_parser(
+        "bench",
+        help="work-precision benchmark against hand-written kernels and scipy",
+        description=(
+            "Run-time against error for galerkin_vi methods and, in the same run, hand-written "
+            "numba kernels and scipy's solve_ivp; prints ratios and writes a table, JSON and "
+            "(with matplotlib) plots."
+        ),
+    )
+    bench.add_arguments(bench_parser)
     return parser
 
 
