@@ -106,6 +106,28 @@ def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv
 
 
 @kernel
+def extrapolate(C, C_prev, E):
+    """Initial guess: the previous step's polynomial at this step's nodes, re-based.
+
+    On entry C holds the previous step's increments; on exit the guess for this
+    step as increments from q_k = q_{k-1} + C_prev[s] (C_prev is work space).
+    """
+    s1, n = C.shape
+    s = s1 - 1
+    for nu in range(s1):
+        for a in range(n):
+            C_prev[nu, a] = C[nu, a]
+    for nu in range(s1):
+        for a in range(n):
+            acc = 0.0
+            for mu in range(1, s1):
+                acc += E[nu, mu] * C_prev[mu, a]
+            C[nu, a] = acc - C_prev[s, a]
+    for a in range(n):
+        C[0, a] = 0.0
+
+
+@kernel
 def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
     """Newton on the stage equations; C[1:] holds the guess on entry, the solution on exit.
 
@@ -225,18 +247,7 @@ def integrate_kernel(
     for k in range(n_steps):
         tk = t0 + k * h
         if k > 0:
-            # previous polynomial extrapolated, re-based at q_k = q_{k-1} + C_prev[s]
-            for nu in range(s1):
-                for a in range(n):
-                    C_prev[nu, a] = C[nu, a]
-            for nu in range(s1):
-                for a in range(n):
-                    acc = 0.0
-                    for mu in range(1, s1):
-                        acc += E[nu, mu] * C_prev[mu, a]
-                    C[nu, a] = acc - C_prev[s, a]
-            for a in range(n):
-                C[0, a] = 0.0
+            extrapolate(C, C_prev, E)
         status, its, increment, residual = solve_stages(
             tk, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work
         )
@@ -386,17 +397,7 @@ def linear_kernel(
     for k in range(n_steps):
         tk = t0 + k * h
         if k > 0:
-            for nu in range(s1):
-                for a in range(n):
-                    C_prev[nu, a] = C[nu, a]
-            for nu in range(s1):
-                for a in range(n):
-                    acc = 0.0
-                    for mu in range(1, s1):
-                        acc += E[nu, mu] * C_prev[mu, a]
-                    C[nu, a] = acc - C_prev[s, a]
-            for a in range(n):
-                C[0, a] = 0.0
+            extrapolate(C, C_prev, E)
         assemble_gradient(tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
         for nu in range(s):
             for a in range(n):
