@@ -38,7 +38,7 @@ __all__ = [
     "unsupported_functions",
 ]
 
-GENERATOR_VERSION = "1"
+GENERATOR_VERSION = "2"
 _KERNEL_MARKER = "\n# ---- kernel ----\n"
 _END_MARKER = "\n# ---- end kernel ----\n"
 
@@ -138,6 +138,20 @@ class _KernelPrinter(PythonCodePrinter):
     def _print_Symbol(self, expr: sp.Symbol) -> str:
         return expr.name
 
+    def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
+        # half-integer powers (gravity, r**(-3/2)) as sqrt and integer powers:
+        # a call to pow costs several times a sqrt and a few multiplications
+        exponent = expr.exp
+        if isinstance(exponent, sp.Rational) and exponent.q == 2 and abs(exponent.p) <= 9:
+            base = self.parenthesize(expr.base, sp.printing.precedence.PRECEDENCE["Pow"])
+            whole = (abs(exponent.p) - 1) // 2
+            magnitude = f"math.sqrt({self._print(expr.base)})"
+            if whole:
+                power = base if whole == 1 else f"{base}**{whole}"
+                magnitude = f"({power}*{magnitude})"
+            return magnitude if exponent.p > 0 else f"(1.0/{magnitude})"
+        return super()._print_Pow(expr, rational=rational)
+
 
 def unsupported_functions(expr: sp.Expr) -> list[str]:
     """Names of the functions in ``expr`` that the kernel printer cannot print."""
@@ -169,7 +183,9 @@ def _kernel_section(path: str) -> str:
     return body.split(_END_MARKER, 1)[0]
 
 
-def render_module(spec: KernelSpec, key: str, decorator: str = "njit(cache=True)") -> str:
+def render_module(
+    spec: KernelSpec, key: str, decorator: str = "njit(cache=True, inline=\"always\")"
+) -> str:
     """Source text of the kernel module for ``spec``.
 
     Parameters
