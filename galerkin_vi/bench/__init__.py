@@ -17,16 +17,12 @@ See :mod:`galerkin_vi.bench.workprecision` for what is measured and
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
+from typing import TYPE_CHECKING, Any
 
-from .workprecision import (
-    BenchConfig,
-    full_config,
-    quick_config,
-    run_benchmark,
-    tiny_config,
-    write_outputs,
-)
+if TYPE_CHECKING:
+    from .workprecision import BenchConfig
 
 __all__ = [
     "BenchConfig",
@@ -39,6 +35,18 @@ __all__ = [
 ]
 
 DEFAULT_OUTPUT = "bench-results"
+
+# numba, scipy and mpmath load only when a benchmark runs, so that wiring the sub-command into
+# the CLI (add_arguments) costs nothing at start-up.
+_LAZY = {"BenchConfig", "full_config", "quick_config", "tiny_config"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        from . import workprecision
+
+        return getattr(workprecision, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def run(
@@ -72,9 +80,11 @@ def run(
         "best_galerkin_vi", "ratio_peer_over_best", ...}}, "per_step": [...],
         "files": [...]}``.
     """
+    from .workprecision import full_config, quick_config, run_benchmark, write_outputs
+
     cfg = config if config is not None else (quick_config() if quick else full_config())
     if problems is not None:
-        cfg = BenchConfig(**{**cfg.__dict__, "problems": tuple(problems)})
+        cfg = dataclasses.replace(cfg, problems=tuple(problems))
 
     def log(msg: str) -> None:
         if verbose:

@@ -39,8 +39,11 @@ converged stages to form :math:`(q_{k+1}, p_{k+1})`.
 The problem is selected by an integer id rather than by passing a jitted force
 function: numba cannot cache a kernel that takes a function argument (it
 recompiles it in every process), and the branch on a loop-invariant id costs
-nothing measurable. Method tables are computed with mpmath at 40 digits and
-rounded once (:func:`gauss_tables`, :func:`lobatto_tables`).
+nothing measurable (Störmer–Verlet on Kepler: 24.5 ns/step either way). The
+number of degrees of freedom is a run-time value, as in galerkin_vi's kernel;
+hard-coding d = 2 makes that Störmer–Verlet 12 % faster (21.6 ns/step). Method
+tables are computed with mpmath at 40 digits and rounded once
+(:func:`gauss_tables`, :func:`lobatto_tables`).
 """
 
 # ruff: noqa: N803, N806
