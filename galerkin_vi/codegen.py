@@ -184,7 +184,7 @@ def _kernel_section(path: str) -> str:
 
 
 def render_module(
-    spec: KernelSpec, key: str, decorator: str = "njit(cache=True, inline=\"always\")"
+    spec: KernelSpec, key: str, decorator: str = 'njit(cache=True, inline="always")'
 ) -> str:
     """Source text of the kernel module for ``spec``.
 
