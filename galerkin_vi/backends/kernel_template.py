@@ -51,7 +51,8 @@ def interpolate(i, h, qk, C, Phi, D, Q, V):
         qa = 0.0
         va = 0.0
         for nu in range(1, s1):
-            qa += Phi[i, nu] * C[nu, a]
+            if Phi[i, nu] != 0.0:  # collocated nodes: Phi is the identity
+                qa += Phi[i, nu] * C[nu, a]
             va += D[i, nu] * C[nu, a]
         Q[a] = qk[a] + qa
         V[a] = va / h
@@ -99,10 +100,16 @@ def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv
                 col0 = (mu - 1) * n
                 for a in range(n):
                     for cc in range(n):
-                        acc = w_qq * Lqq[a, cc] + w_vv * Lvv[a, cc]
-                        if HAS_LQV:
-                            acc += w_qv * Lqv[a, cc] + w_vq * Lqv[cc, a]
-                        K[row0 + a, col0 + cc] += acc
+                        K[row0 + a, col0 + cc] += w_vv * Lvv[a, cc]
+                # collocated Lobatto nodes (Phi = I): L_qq only on the diagonal blocks
+                if w_qq != 0.0:
+                    for a in range(n):
+                        for cc in range(n):
+                            K[row0 + a, col0 + cc] += w_qq * Lqq[a, cc]
+                if HAS_LQV and (w_qv != 0.0 or w_vq != 0.0):
+                    for a in range(n):
+                        for cc in range(n):
+                            K[row0 + a, col0 + cc] += w_qv * Lqv[a, cc] + w_vq * Lqv[cc, a]
 
 
 @kernel
