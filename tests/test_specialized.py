@@ -2,9 +2,9 @@
 
 Each specialised loop must give the general Newton loop's map to round-off.
 Measured speed-ups per step against ``specialize=False`` (20 000 steps, h = 0.05,
-one run on this machine, ``/tmp/spec.py`` in the issue note): explicit
-Störmer–Verlet 11-19x (pendulum, Kepler, coupled and driven oscillators);
-linear stage equations for quadratic L 3.8-6.3x (s = 2, 3).
+one run, ``python benchmarks/specialised_loops.py``): explicit Störmer–Verlet
+9-18x (pendulum, Kepler, coupled and driven oscillators); linear stage equations
+for quadratic L 3.2-5.4x (s = 2, 3).
 """
 
 from __future__ import annotations
