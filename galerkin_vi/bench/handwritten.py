@@ -57,6 +57,8 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from .. import newton
+
 __all__ = [
     "KEPLER",
     "PENDULUM",
@@ -186,72 +188,20 @@ def kepler_jac(t, y):
 
 
 # ------------------------------------------------------------- linear algebra
-@nb.njit(cache=True)
-def _lu_factor(a, piv):
-    """LU with partial pivoting in place; False when singular."""
-    n = a.shape[0]
-    for k in range(n):
-        p = k
-        big = abs(a[k, k])
-        for i in range(k + 1, n):
-            if abs(a[i, k]) > big:
-                big = abs(a[i, k])
-                p = i
-        piv[k] = p
-        if big == 0.0 or not big < 1e300:
-            return False
-        if p != k:
-            for j in range(n):
-                tmp = a[k, j]
-                a[k, j] = a[p, j]
-                a[p, j] = tmp
-        inv = 1.0 / a[k, k]
-        for i in range(k + 1, n):
-            a[i, k] *= inv
-            f = a[i, k]
-            if f != 0.0:
-                for j in range(k + 1, n):
-                    a[i, j] -= f * a[k, j]
-    return True
+# The generated kernels' own LU (galerkin_vi.newton), so that a per-step ratio measures the
+# rest of the step, not two implementations of the same elimination.
+_lu_factor = nb.njit(cache=True)(newton.lu_factor_inplace)
+_lu_solve = nb.njit(cache=True)(newton.lu_solve_inplace)
 
 
-@nb.njit(cache=True)
-def _lu_solve(lu, piv, x):
-    n = lu.shape[0]
-    for k in range(n):
-        p = piv[k]
-        if p != k:
-            tmp = x[k]
-            x[k] = x[p]
-            x[p] = tmp
-    for i in range(n):
-        acc = x[i]
-        for j in range(i):
-            acc -= lu[i, j] * x[j]
-        x[i] = acc
-    for i in range(n - 1, -1, -1):
-        acc = x[i]
-        for j in range(i + 1, n):
-            acc -= lu[i, j] * x[j]
-        x[i] = acc / lu[i, i]
+_newton_status = nb.njit(cache=True)(newton.newton_status)
 
 
 @nb.njit(cache=True)
 def _newton_continue(increment, previous, size, tol, it, maxiter):
-    """0 continue, 1 converged, 2 failed (galerkin_vi's stopping rule)."""
-    if not increment < 1e300:
-        return 2
-    if increment == 0.0:
-        return 1
-    if increment <= tol * (1.0 + size):
-        if increment >= previous or it >= maxiter:
-            return 1
-        return 0
-    if it >= maxiter:
-        return 2
-    if it >= 3 and increment > 2.0 * previous:
-        return 2
-    return 0
+    """0 continue, 1 converged, 2 failed: galerkin_vi's own stopping rule."""
+    status = _newton_status(increment, previous, 1.0 + size, tol, it, maxiter)
+    return 2 if status >= 2 else status
 
 
 # --------------------------------------------------------------- Störmer–Verlet
