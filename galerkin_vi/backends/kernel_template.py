@@ -41,6 +41,14 @@ STATUS_SINGULAR = 2
 STATUS_NONFINITE = 3
 # below this relative increment Newton has converged to a few ulps after one more step
 FREEZE = 1e-8
+# constant-mass iteration: switch to full Newton when an increment is not at least
+# MASS_CONTRACTION * (number of unknowns) times the one before, capped at
+# MASS_CONTRACTION_MAX: a full Newton step costs relatively more with more unknowns
+# (measured break-even: ~0.02 for 2 unknowns, >0.1 from about 10)
+MASS_CONTRACTION = 0.01
+MASS_CONTRACTION_MAX = 0.2
+# after a switch, steps that start with full Newton before the cheap iteration is retried
+MASS_RETRY = 64
 
 
 @kernel
@@ -113,6 +121,32 @@ def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv
 
 
 @kernel
+def assemble_mass_matrix(t0, h, q0, v0, prm, b, D, work, Kc):
+    r"""The constant part of the stage Jacobian when :math:`L_{vv} = M` is constant.
+
+    .. math::
+
+        K^{c}_{\nu\mu} = \frac1h \sum_i b_i D_{i\nu} D_{i\mu}\, M,
+        \qquad \nu = 0..s-1,\ \mu = 1..s,
+
+    i.e. the stage Jacobian without its :math:`h\,L_{qq}` terms.
+    """
+    Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv = work
+    point_hessian(t0, q0, v0, prm, Lq, Lv, Lqq, Lqv, Lvv)
+    r = b.shape[0]
+    s = D.shape[1] - 1
+    n = q0.shape[0]
+    Kc[:, :] = 0.0
+    for i in range(r):
+        for nu in range(s):
+            for mu in range(1, s + 1):
+                w = b[i] * D[i, nu] * D[i, mu] / h
+                for a in range(n):
+                    for cc in range(n):
+                        Kc[nu * n + a, (mu - 1) * n + cc] += w * Lvv[a, cc]
+
+
+@kernel
 def first_guess(C, d, h, v0):
     """Increments q^nu - q_0 = d_nu h v_0 on the first step (no previous polynomial)."""
     s1, n = C.shape
@@ -160,15 +194,24 @@ def extrapolate(C, C_prev, E):
 
 
 @kernel
-def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
-    """Newton on the stage equations; C[1:] holds the guess on entry, the solution on exit.
+def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, Kc, pivc, cheap):
+    r"""Newton on the stage equations; C[1:] holds the guess on entry, the solution on exit.
 
-    Once an increment is below ``FREEZE * (1 + |C|)`` the next one is at round-off
-    level, so the remaining iterations (run until the increment is zero or stops
-    decreasing) reuse the last LU factors and evaluate only the gradient:
-    a simplified Newton step costs about a third of a full one.
+    Three kinds of iteration share one stopping rule (increment zero or no
+    longer decreasing, once below ``tol``):
 
-    Returns (status, iterations, last increment, last residual max-norm).
+    - with ``cheap`` set (constant mass matrix), the iteration matrix is the
+      constant :math:`K^c` of :func:`assemble_mass_matrix`, factorised once per
+      run, so an iteration is one gradient and one triangular solve. It
+      contracts by :math:`O(h^2\|L_{qq}\|/\|M\|)` per step; when an increment
+      is not ``MASS_CONTRACTION`` times the one before, full Newton takes over;
+    - full Newton: exact Jacobian, assembled and factorised;
+    - once a full Newton increment is below ``FREEZE * (1 + |C|)`` the next one
+      is at round-off level, so the remaining iterations reuse the last LU
+      factors and evaluate only the gradient.
+
+    Returns (status, iterations, last increment, last residual max-norm,
+    whether the cheap iteration had to hand over to full Newton).
     """
     Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv = work
     s1, n = C.shape
@@ -176,8 +219,10 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
     previous = np.inf
     residual = np.inf
     frozen = False
+    switched = False
+    contraction = min(MASS_CONTRACTION_MAX, MASS_CONTRACTION * s * n)
     for it in range(1, maxiter + 1):
-        if frozen:
+        if frozen or cheap:
             assemble_gradient(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
         else:
             assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K)
@@ -189,10 +234,13 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
                 if not abs(val) <= residual:  # also catches NaN
                     residual = abs(val)
         if not residual < 1e300:
-            return STATUS_NONFINITE, it, np.inf, residual
-        if not frozen and not lu_factor_inplace(K, piv):
-            return STATUS_SINGULAR, it, np.inf, residual
-        lu_solve_inplace(K, piv, R)
+            return STATUS_NONFINITE, it, np.inf, residual, switched
+        if cheap:
+            lu_solve_inplace(Kc, pivc, R)
+        else:
+            if not frozen and not lu_factor_inplace(K, piv):
+                return STATUS_SINGULAR, it, np.inf, residual, switched
+            lu_solve_inplace(K, piv, R)
         increment = 0.0
         size = 0.0
         for nu in range(1, s1):
@@ -202,15 +250,26 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
                     increment = abs(R[(nu - 1) * n + a])
                 if abs(C[nu, a]) > size:
                     size = abs(C[nu, a])
+        if (
+            cheap
+            and it >= 2
+            and increment > contraction * previous
+            and increment > tol * (1.0 + size)
+        ):
+            # too slow at this h (or diverging): exact Jacobian from here on
+            cheap = False
+            switched = True
+            previous = np.inf
+            continue
         status = newton_status(increment, previous, 1.0 + size, tol, it, maxiter)
         if status == CONVERGED:
-            return STATUS_OK, it, increment, residual
+            return STATUS_OK, it, increment, residual, switched
         if status != CONTINUE:
-            return STATUS_NEWTON_FAILED, it, increment, residual
-        if increment <= FREEZE * (1.0 + size):
+            return STATUS_NEWTON_FAILED, it, increment, residual, switched
+        if not cheap and increment <= FREEZE * (1.0 + size):
             frozen = True
         previous = increment
-    return STATUS_NEWTON_FAILED, maxiter, previous, residual
+    return STATUS_NEWTON_FAILED, maxiter, previous, residual, switched
 
 
 @kernel
@@ -248,6 +307,7 @@ def integrate_kernel(
     E,
     tol,
     maxiter,
+    constant_mass,
     t_out,
     q_out,
     p_out,
@@ -255,6 +315,9 @@ def integrate_kernel(
 ):
     """Run ``n_steps`` steps of the position–momentum map from (q0, p0).
 
+    With ``constant_mass`` (the system's :math:`L_{vv}` is constant and
+    :math:`L_{qv} = 0`) the stage equations are first iterated with the
+    constant matrix of :func:`assemble_mass_matrix` (see :func:`solve_stages`).
     Saves rows at steps k with k % save_every == 0 and at the last step.
     Returns (status, steps completed, rows saved, max residual, failing increment).
     """
@@ -263,6 +326,12 @@ def integrate_kernel(
     s = s1 - 1
     work = make_work(s, n)
     G = work[7]
+    Kc = np.zeros((s * n, s * n))
+    pivc = np.zeros(s * n, dtype=np.int64)
+    if constant_mass:
+        assemble_mass_matrix(t0, h, q0, v0, prm, b, D, work, Kc)
+        constant_mass = lu_factor_inplace(Kc, pivc)
+    retry_in = 0
     C = np.zeros((s1, n))
     C_prev = np.zeros((s1, n))
     qk = q0.copy()
@@ -275,9 +344,14 @@ def integrate_kernel(
         tk = t0 + k * h
         if k > 0:
             extrapolate(C, C_prev, E)
-        status, its, increment, residual = solve_stages(
-            tk, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work
+        cheap = constant_mass and retry_in == 0
+        status, its, increment, residual, switched = solve_stages(
+            tk, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, Kc, pivc, cheap
         )
+        if switched:
+            retry_in = MASS_RETRY
+        elif retry_in > 0:
+            retry_in -= 1
         iterations_out[k] = its
         if status == STATUS_OK:
             assemble_gradient(
