@@ -35,10 +35,12 @@ __all__ = [
     "kernel_spec",
     "render_module",
     "signature",
+    "sparsity_pattern",
+    "use_banded",
     "unsupported_functions",
 ]
 
-GENERATOR_VERSION = "2"
+GENERATOR_VERSION = "3"
 _KERNEL_MARKER = "\n# ---- kernel ----\n"
 _END_MARKER = "\n# ---- end kernel ----\n"
 
@@ -58,6 +60,37 @@ class KernelSpec:
     lagrangian: sp.Expr
     gradient_entries: tuple[tuple[str, sp.Expr], ...]
     hessian_entries: tuple[tuple[str, sp.Expr], ...]
+    pattern: tuple[tuple[int, int], ...] = ()
+    half_bandwidth: int = 0
+    banded: bool = False
+
+    @property
+    def nnz(self) -> int:
+        """Number of stored entries of each second-derivative block."""
+        return len(self.pattern) if self.banded else self.n * self.n
+
+
+def sparsity_pattern(pieces, n: int, has_lqv: bool) -> tuple[tuple[int, int], ...]:
+    """Union of the structural nonzeros of L_qq, L_vv, L_qv and L_qv^T, row-major."""
+    blocks = [pieces.Lqq, pieces.Lvv] + ([pieces.Lqv] if has_lqv else [])
+    pairs = set()
+    for block in blocks:
+        for (a, b), e in block.todok().items():
+            if e != 0:
+                pairs.add((a, b))
+                pairs.add((b, a))
+    pairs.update((a, a) for a in range(n))  # the diagonal, so every coordinate has a row
+    return tuple(sorted(pairs))
+
+
+def use_banded(n: int, half_bandwidth: int) -> bool:
+    """Banded storage and LU pay when the coupling band is narrow against n.
+
+    With s control points the stage Jacobian, ordered coordinate-major, has
+    half-bandwidth (w + 1) s - 1 for coordinate coupling |a - b| <= w: a banded LU
+    costs O(n s^3 w^2) instead of O(n^3 s^3).
+    """
+    return n >= 8 and 4 * (half_bandwidth + 1) <= n
 
 
 def kernel_spec(system: LagrangianSystem) -> KernelSpec:
@@ -73,24 +106,30 @@ def kernel_spec(system: LagrangianSystem) -> KernelSpec:
     if system.t is not None:
         rename[system.t] = sp.Symbol("t", real=True)
     p = system.pieces
+    has_lqv = not system.structure.zero_Lqv
+    pattern = sparsity_pattern(p, n, has_lqv)
+    half_bandwidth = max(abs(a - b) for a, b in pattern) if pattern else 0
+    banded = use_banded(n, half_bandwidth)
+    position = {pair: k for k, pair in enumerate(pattern)}
 
-    def entries(name: str, matrix: sp.Matrix, two_d: bool) -> list[tuple[str, sp.Expr]]:
+    def vector(name: str, column: sp.Matrix) -> list[tuple[str, sp.Expr]]:
+        return [(f"{name}[{a}]", e.xreplace(rename)) for a, e in enumerate(column) if e != 0]
+
+    def matrix(name: str, block: sp.MatrixBase) -> list[tuple[str, sp.Expr]]:
+        # flat storage: slot a*n + b (dense), or the pattern position of (a, b) (banded)
         out = []
-        for idx, expr in enumerate(matrix):
-            expr = expr.xreplace(rename)
-            if expr == 0:
-                continue
-            slot = f"{name}[{idx // n}, {idx % n}]" if two_d else f"{name}[{idx}]"
-            out.append((slot, expr))
+        for (a, b), e in sorted(block.todok().items()):
+            if e != 0:
+                k = position[(a, b)] if banded else a * n + b
+                out.append((f"{name}[{k}]", e.xreplace(rename)))
         return out
 
-    gradient = entries("Lq", p.Lq, False) + entries("Lv", p.Lv, False)
-    has_lqv = not system.structure.zero_Lqv
+    gradient = vector("Lq", p.Lq) + vector("Lv", p.Lv)
     hessian = (
         gradient
-        + entries("Lqq", p.Lqq, True)
-        + (entries("Lqv", p.Lqv, True) if has_lqv else [])
-        + entries("Lvv", p.Lvv, True)
+        + matrix("Lqq", p.Lqq)
+        + (matrix("Lqv", p.Lqv) if has_lqv else [])
+        + matrix("Lvv", p.Lvv)
     )
     return KernelSpec(
         n=n,
@@ -100,12 +139,19 @@ def kernel_spec(system: LagrangianSystem) -> KernelSpec:
         lagrangian=p.L.xreplace(rename),
         gradient_entries=tuple(gradient),
         hessian_entries=tuple(hessian),
+        pattern=pattern if banded else (),
+        half_bandwidth=half_bandwidth,
+        banded=banded,
     )
 
 
 def _loop_sources() -> str:
+    """Every source that shapes a generated module: the printer and the time loop."""
     pkg = resources.files("galerkin_vi")
-    return (pkg / "newton.py").read_text() + (pkg / "backends" / "kernel_template.py").read_text()
+    return "".join(
+        (pkg / path).read_text()
+        for path in ("codegen.py", "newton.py", "backends/kernel_template.py")
+    )
 
 
 def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
@@ -116,7 +162,8 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
         backend,
         backend_version,
         sys.version,
-        repr((spec.n, spec.n_params, spec.autonomous, spec.has_Lqv)),
+        repr((spec.n, spec.n_params, spec.autonomous, spec.has_Lqv, spec.banded)),
+        repr((spec.half_bandwidth, spec.pattern)),
         sp.srepr(spec.lagrangian),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.hessian_entries),
         _loop_sources(),
@@ -129,8 +176,11 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
 class _KernelPrinter(PythonCodePrinter):
     """Python printer with round-trip float literals and strict function support."""
 
-    def __init__(self) -> None:
-        super().__init__({"strict": True, "fully_qualified_modules": True})
+    def __init__(self, ordered: bool = True) -> None:
+        settings = {"strict": True, "fully_qualified_modules": True}
+        if not ordered:
+            settings["order"] = "none"
+        super().__init__(settings)
 
     def _print_Float(self, expr: sp.Float) -> str:
         return repr(float(expr))
@@ -165,16 +215,69 @@ def unsupported_functions(expr: sp.Expr) -> list[str]:
     return sorted(names)
 
 
-def _function_body(entries: list[tuple[str, sp.Expr]], returns: sp.Expr | None = None) -> list[str]:
-    printer = _KernelPrinter()
+def _function_body(
+    entries: list[tuple[str, sp.Expr]], returns: sp.Expr | None = None, large: bool = False
+) -> list[str]:
+    # SymPy's "basic" CSE optimisations and sorted printing cost minutes on thousands
+    # of entries (a chain of 1000 masses: 18 s against 1.2 s without); large systems
+    # go without them
+    small = not large
+    printer = _KernelPrinter(ordered=small)
     exprs = [e for _, e in entries] + ([returns] if returns is not None else [])
-    temporaries, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("_x"), optimizations="basic")
-    lines = [f"    {sym} = {printer.doprint(rhs)}" for sym, rhs in temporaries]
+    temporaries, reduced = sp.cse(
+        exprs,
+        symbols=sp.numbered_symbols("_x"),
+        optimizations="basic" if small else None,
+        order="canonical" if small else "none",
+    )
+    lines = []
+    for sym, rhs in temporaries:
+        lines += _assignment(str(sym), rhs, printer)
     for (slot, _), expr in zip(entries, reduced[: len(entries)], strict=True):
-        lines.append(f"    {slot} = {printer.doprint(expr)}")
+        lines += _assignment(slot, expr, printer)
     if returns is not None:
-        lines.append(f"    return {printer.doprint(reduced[-1])}")
+        lines += _assignment("_result", reduced[-1], printer)
+        lines.append("    return _result")
     return lines or ["    pass"]
+
+
+# Python's parser nests a + b + c + ... one level per operator: long sums are
+# accumulated in chunks (a Lagrangian of 1000 springs otherwise fails to compile)
+_SUM_CHUNK = 32
+
+
+def _assignment(target: str, expr: sp.Expr, printer: _KernelPrinter) -> list[str]:
+    terms = sp.Add.make_args(expr)
+    if len(terms) <= _SUM_CHUNK:
+        return [f"    {target} = {printer.doprint(expr)}"]
+    chunks = [sp.Add(*terms[k : k + _SUM_CHUNK]) for k in range(0, len(terms), _SUM_CHUNK)]
+    lines = [f"    {target} = {printer.doprint(chunks[0])}"]
+    lines += [f"    {target} += {printer.doprint(chunk)}" for chunk in chunks[1:]]
+    return lines
+
+
+# point functions with more statements than this are not inlined (compile time)
+INLINE_LIMIT = 120
+
+
+def _point_decorator(spec: KernelSpec, decorator: str) -> str:
+    if len(spec.hessian_entries) <= INLINE_LIMIT or "inline" not in decorator:
+        return decorator
+    return decorator.replace(', inline="always"', "")
+
+
+def _pattern_lines(spec: KernelSpec) -> list[str]:
+    """Row, column and transposed position of each stored entry (banded storage only)."""
+    pattern = spec.pattern or ((0, 0),)  # numba needs a typed, non-empty constant
+    position = {pair: k for k, pair in enumerate(pattern)}
+    rows = ", ".join(str(a) for a, _ in pattern)
+    cols = ", ".join(str(b) for _, b in pattern)
+    transposed = ", ".join(str(position.get((b, a), 0)) for a, b in pattern)
+    return [
+        f"PATTERN_ROW = np.array([{rows}], dtype=np.int64)",
+        f"PATTERN_COL = np.array([{cols}], dtype=np.int64)",
+        f"PATTERN_T = np.array([{transposed}], dtype=np.int64)",
+    ]
 
 
 def _kernel_section(path: str) -> str:
@@ -198,6 +301,7 @@ def render_module(
         Expression applied to every kernel function (``"njit(cache=True)"`` for
         the compiled backend).
     """
+    large = len(spec.hessian_entries) > INLINE_LIMIT
     head = [
         f"# galerkin_vi generated kernel {key}",
         "# Generated from a SymPy Lagrangian; do not edit (rebuilt when stale).",
@@ -208,25 +312,31 @@ def render_module(
         "from numba import njit",
         "",
         f"kernel = {decorator}",
+        # large point functions are compiled once and called, not inlined at every call site
+        f"point_kernel = {_point_decorator(spec, decorator)}",
         f"N = {spec.n}",
         f"N_PARAMS = {spec.n_params}",
         f"AUTONOMOUS = {spec.autonomous}",
         f"HAS_LQV = {spec.has_Lqv}",
+        f"BANDED = {spec.banded}",
+        f"BAND = {spec.half_bandwidth}",
+        f"NNZ = {spec.nnz}",
+        *_pattern_lines(spec),
         "",
         "",
-        "@kernel",
+        "@point_kernel",
         "def point_gradient(t, q, v, prm, Lq, Lv):",
-        *_function_body(list(spec.gradient_entries)),
+        *_function_body(list(spec.gradient_entries), large=large),
         "",
         "",
-        "@kernel",
+        "@point_kernel",
         "def point_hessian(t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv):",
-        *_function_body(list(spec.hessian_entries)),
+        *_function_body(list(spec.hessian_entries), large=large),
         "",
         "",
-        "@kernel",
+        "@point_kernel",
         "def lagrangian(t, q, v, prm):",
-        *_function_body([], returns=spec.lagrangian),
+        *_function_body([], returns=spec.lagrangian, large=large),
         "",
     ]
     newton = _kernel_section("newton.py")

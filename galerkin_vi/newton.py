@@ -26,6 +26,8 @@ __all__ = [
     "DIVERGED",
     "NOT_CONVERGED",
     "NewtonResult",
+    "band_lu_factor",
+    "band_lu_solve",
     "lu_factor_inplace",
     "lu_solve_inplace",
     "newton_solve",
@@ -109,6 +111,67 @@ def lu_solve_inplace(lu, piv, x):
         for j in range(i + 1, n):
             acc -= lu[i, j] * x[j]
         x[i] = acc / lu[i, i]
+
+
+def band_lu_factor(ab, piv, kl, ku):
+    """Banded LU with partial pivoting, in place (LAPACK ``gbtf2`` layout).
+
+    ``ab`` has shape ``(2 kl + ku + 1, m)``; entry ``A[i, j]`` is stored in
+    ``ab[kl + ku + i - j, j]`` and the top ``kl`` rows are zero on entry (room
+    for the fill-in that pivoting creates). Cost ``O(m kl (kl + ku))``.
+    Returns False if a pivot is zero or not finite.
+    """
+    m = ab.shape[1]
+    kv = kl + ku
+    last = 0  # last column touched by the row interchanges so far
+    for j in range(m):
+        below = min(kl, m - 1 - j)
+        p = 0
+        big = abs(ab[kv, j])
+        for i in range(1, below + 1):
+            if abs(ab[kv + i, j]) > big:
+                big = abs(ab[kv + i, j])
+                p = i
+        piv[j] = j + p
+        if big == 0.0 or not big < 1e300:
+            return False
+        last = max(last, min(j + ku + p, m - 1))
+        if p != 0:
+            for c in range(j, last + 1):
+                tmp = ab[kv + j - c, c]
+                ab[kv + j - c, c] = ab[kv + j + p - c, c]
+                ab[kv + j + p - c, c] = tmp
+        inv = 1.0 / ab[kv, j]
+        for i in range(1, below + 1):
+            ab[kv + i, j] *= inv
+        for c in range(j + 1, last + 1):
+            f = ab[kv + j - c, c]
+            if f != 0.0:
+                for i in range(1, below + 1):
+                    ab[kv + j + i - c, c] -= ab[kv + i, j] * f
+    return True
+
+
+def band_lu_solve(ab, piv, kl, ku, x):
+    """Solve ``A y = x`` in place given :func:`band_lu_factor`'s output."""
+    m = ab.shape[1]
+    kv = kl + ku
+    for j in range(m):
+        p = piv[j]
+        if p != j:
+            tmp = x[j]
+            x[j] = x[p]
+            x[p] = tmp
+        xj = x[j]
+        if xj != 0.0:
+            for i in range(1, min(kl, m - 1 - j) + 1):
+                x[j + i] -= ab[kv + i, j] * xj
+    for j in range(m - 1, -1, -1):
+        x[j] /= ab[kv, j]
+        xj = x[j]
+        if xj != 0.0:
+            for i in range(max(0, j - kv), j):
+                x[i] -= ab[kv + i - j, j] * xj
 
 
 # ---- end kernel ----

@@ -23,6 +23,7 @@ class FlatEvaluator:
     ----------
     exprs : sequence of sympy.Expr
         The expressions, evaluated jointly (one common-subexpression pass).
+        Entries that are identically zero are not compiled, only filled in.
     args : sequence of sympy.Symbol
         Argument symbols; each call passes one array (or scalar) per argument.
 
@@ -33,13 +34,39 @@ class FlatEvaluator:
     """
 
     def __init__(self, exprs: Sequence[sp.Expr], args: Sequence[sp.Symbol]) -> None:
-        self.n_out = len(exprs)
-        self._fn: Callable = sp.lambdify(list(args), list(exprs), modules="numpy", cse=True)
+        entries = {j: e for j, e in enumerate(exprs) if e != 0}
+        self._setup(len(exprs), entries, args)
+
+    @classmethod
+    def from_blocks(
+        cls, blocks: Sequence[sp.MatrixBase], args: Sequence[sp.Symbol]
+    ) -> FlatEvaluator:
+        """Evaluator of the row-major concatenation of matrices (dense or sparse).
+
+        Only the stored nonzero entries are visited, so a sparse N x N block
+        costs O(nonzeros), not O(N^2), to build.
+        """
+        entries: dict[int, sp.Expr] = {}
+        offset = 0
+        for block in blocks:
+            cols = block.shape[1]
+            for (i, j), e in block.todok().items():
+                if e != 0:
+                    entries[offset + i * cols + j] = e
+            offset += block.shape[0] * cols
+        self = cls.__new__(cls)
+        self._setup(offset, entries, args)
+        return self
+
+    def _setup(self, n_out: int, entries: dict[int, sp.Expr], args: Sequence[sp.Symbol]) -> None:
+        self.n_out = n_out
+        self._slots = np.fromiter(entries, dtype=np.int64, count=len(entries))
+        self._fn: Callable = sp.lambdify(list(args), list(entries.values()), modules="numpy", cse=True)
 
     def __call__(self, *values: NDArray | float) -> NDArray[np.float64]:
         shape = np.broadcast_shapes(*(np.shape(x) for x in values))
         results = self._fn(*values)
-        out = np.empty(shape + (self.n_out,))
-        for j, r in enumerate(results):
+        out = np.zeros(shape + (self.n_out,))
+        for j, r in zip(self._slots, results, strict=True):
             out[..., j] = r
         return out

@@ -100,14 +100,15 @@ def test_spec_drops_identically_zero_entries():
     slots = [slot for slot, _ in spec.hessian_entries]
     assert not spec.has_Lqv
     assert not any(slot.startswith("Lqv") for slot in slots)  # L_qv == 0 is skipped
-    assert "Lvv[0, 0]" in slots and "Lqq[0, 0]" in slots
+    assert "Lvv[0]" in slots and "Lqq[0]" in slots  # flat storage, entry (0, 0)
     assert spec.autonomous and spec.n == 1 and spec.n_params == 2
 
     coupled = codegen.kernel_spec(double_pendulum())
     assert coupled.has_Lqv
     coupled_slots = [slot for slot, _ in coupled.hessian_entries]
-    assert "Lvv[1, 1]" in coupled_slots
-    assert "Lqv[0, 0]" in coupled_slots and "Lqv[0, 1]" in coupled_slots
+    assert "Lvv[3]" in coupled_slots  # entry (1, 1) of a 2 x 2 block, flat
+    assert "Lqv[0]" in coupled_slots and "Lqv[1]" in coupled_slots
+    assert not coupled.banded  # two coordinates: dense storage
 
 
 # --------------------------------------------------------------------- render
@@ -135,8 +136,10 @@ def test_rendered_point_functions_compute_the_derivatives():
     ns = _load_uncompiled(source)
     q, v = np.array([0.7, -0.4]), np.array([1.3, 0.2])
     Lq, Lv = np.zeros(2), np.zeros(2)
-    Lqq, Lqv, Lvv = np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2))
+    Lqq, Lqv, Lvv = np.zeros(4), np.zeros(4), np.zeros(4)
     ns["point_hessian"](0.0, q, v, np.zeros(0), Lq, Lv, Lqq, Lqv, Lvv)
+    # flat storage: entry (a, b) at 2 a + b
+    Lqq, Lqv, Lvv = Lqq.reshape(2, 2), Lqv.reshape(2, 2), Lvv.reshape(2, 2)
     s, c = np.sin(q[0] - q[1]), np.cos(q[0] - q[1])
     vv = v[0] * v[1]
     np.testing.assert_allclose(

@@ -13,6 +13,8 @@ from galerkin_vi.newton import (
     CONVERGED,
     DIVERGED,
     NOT_CONVERGED,
+    band_lu_factor,
+    band_lu_solve,
     lu_factor_inplace,
     lu_solve_inplace,
     newton_solve,
@@ -220,3 +222,61 @@ def test_lu_nearly_singular_but_regular_is_accepted():
     np.testing.assert_allclose(
         x, [1.0, 1.0], rtol=0, atol=1e-3
     )  # cond 4e12: measured 0 (exact data)
+
+
+# ------------------------------------------------------------------ banded LU
+def _to_band(A: np.ndarray, kl: int, ku: int) -> np.ndarray:
+    m = A.shape[0]
+    ab = np.zeros((2 * kl + ku + 1, m))
+    for i in range(m):
+        for j in range(max(0, i - kl), min(m, i + ku + 1)):
+            ab[kl + ku + i - j, j] = A[i, j]
+    return ab
+
+
+banded_systems = st.tuples(st.integers(1, 30), st.integers(0, 5), st.integers(0, 5)).flatmap(
+    lambda dims: st.tuples(
+        st.just(dims),
+        hnp.arrays(np.float64, (dims[0], dims[0]), elements=entries),
+        hnp.arrays(np.float64, (dims[0],), elements=entries),
+    )
+)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.filter_too_much])
+@given(banded_systems)
+def test_band_lu_solve_matches_dense_solve(data):
+    (m, kl, ku), A, rhs = data
+    i, j = np.indices(A.shape)
+    A = np.where((i - j <= kl) & (j - i <= ku), A, 0.0)  # keep the band
+    cond = np.linalg.cond(A)
+    assume(np.isfinite(cond) and cond < 1e8)
+    ab = _to_band(A, kl, ku)
+    piv = np.zeros(m, dtype=np.int64)
+    assert band_lu_factor(ab, piv, kl, ku)
+    x = rhs.copy()
+    band_lu_solve(ab, piv, kl, ku, x)
+    expected = np.linalg.solve(A, rhs)
+    scale = max(1.0, np.abs(expected).max())
+    assert np.abs(x - expected).max() <= 1e-14 * cond * scale
+    assert np.all((piv >= np.arange(m)) & (piv <= np.minimum(np.arange(m) + kl, m - 1)))
+
+
+def test_band_lu_pivots_within_the_band():
+    # a zero on the diagonal forces a row interchange, which fills the extra kl rows
+    A = np.array([[0.0, 1.0, 0.0], [2.0, 1.0, 1.0], [0.0, 3.0, 1.0]])
+    ab = _to_band(A, 1, 1)
+    piv = np.zeros(3, dtype=np.int64)
+    assert band_lu_factor(ab, piv, 1, 1)
+    assert piv[0] == 1
+    x = np.array([1.0, 2.0, 3.0])
+    band_lu_solve(ab, piv, 1, 1, x)
+    np.testing.assert_allclose(A @ x, [1.0, 2.0, 3.0], atol=1e-15)
+
+
+@pytest.mark.parametrize(
+    "A",
+    [np.zeros((4, 4)), np.diag([1.0, 0.0, 2.0, 3.0]), np.diag([1.0, np.nan, 2.0, 3.0])],
+)
+def test_band_lu_detects_singular(A):
+    assert not band_lu_factor(_to_band(A, 1, 1), np.zeros(4, dtype=np.int64), 1, 1)

@@ -28,11 +28,25 @@ import numpy as np
 from ..newton import (
     CONTINUE,
     CONVERGED,
+    band_lu_factor,
+    band_lu_solve,
     lu_factor_inplace,
     lu_solve_inplace,
     newton_status,
 )
-from .pointwise_interface import AUTONOMOUS, HAS_LQV, kernel, point_gradient, point_hessian
+from .pointwise_interface import (
+    AUTONOMOUS,
+    BAND,
+    BANDED,
+    HAS_LQV,
+    NNZ,
+    PATTERN_COL,
+    PATTERN_ROW,
+    PATTERN_T,
+    kernel,
+    point_gradient,
+    point_hessian,
+)
 
 # ---- kernel ----
 STATUS_OK = 0
@@ -67,6 +81,82 @@ def interpolate(i, h, qk, C, Phi, D, Q, V):
 
 
 @kernel
+def band_half_width(s):
+    """Half-bandwidth of the stage Jacobian ordered coordinate-major, (BAND + 1) s - 1."""
+    return (BAND + 1) * s - 1
+
+
+@kernel
+def unknown(nu, a, s, n):
+    """Position of coordinate a of control point nu (0-based among the unknowns).
+
+    Node-major (nu n + a) for dense storage; coordinate-major (a s + nu) for
+    banded storage, which keeps coupled coordinates' unknowns close together.
+    """
+    if BANDED:
+        return a * s + nu
+    return nu * n + a
+
+
+@kernel
+def add_block(K, nu, mu, s, n, w_vv, Lvv, w_qq, Lqq, w_qv, w_vq, Lqv):
+    r"""Add to block (equation nu, control point mu) of K the point-wise second derivatives.
+
+    Block :math:`(\nu, \mu)` gains
+    :math:`w_{vv} L_{vv} + w_{qq} L_{qq} + w_{qv} L_{qv} + w_{vq} L_{qv}^T`,
+    with the blocks stored flat (``a n + c``, or the pattern position when banded).
+    """
+    if BANDED:
+        kb = band_half_width(s)
+        for k in range(NNZ):
+            a = PATTERN_ROW[k]
+            cc = PATTERN_COL[k]
+            value = w_vv * Lvv[k]
+            if w_qq != 0.0:
+                value += w_qq * Lqq[k]
+            if HAS_LQV:
+                value += w_qv * Lqv[k] + w_vq * Lqv[PATTERN_T[k]]
+            i = a * s + nu
+            j = cc * s + mu - 1
+            K[2 * kb + i - j, j] += value
+        return
+    row0 = nu * n
+    col0 = (mu - 1) * n
+    if w_vv != 0.0:
+        for a in range(n):
+            for cc in range(n):
+                K[row0 + a, col0 + cc] += w_vv * Lvv[a * n + cc]
+    # collocated Lobatto nodes (Phi = I): L_qq only on the diagonal blocks
+    if w_qq != 0.0:
+        for a in range(n):
+            for cc in range(n):
+                K[row0 + a, col0 + cc] += w_qq * Lqq[a * n + cc]
+    if HAS_LQV and (w_qv != 0.0 or w_vq != 0.0):
+        for a in range(n):
+            for cc in range(n):
+                K[row0 + a, col0 + cc] += w_qv * Lqv[a * n + cc] + w_vq * Lqv[cc * n + a]
+
+
+@kernel
+def factor_jacobian(K, piv, s):
+    """LU-factorise K in place (banded or dense); False if singular."""
+    if BANDED:
+        kb = band_half_width(s)
+        return band_lu_factor(K, piv, kb, kb)
+    return lu_factor_inplace(K, piv)
+
+
+@kernel
+def solve_jacobian(K, piv, s, R):
+    """Overwrite R with K^{-1} R from :func:`factor_jacobian`'s factors."""
+    if BANDED:
+        kb = band_half_width(s)
+        band_lu_solve(K, piv, kb, kb, R)
+    else:
+        lu_solve_inplace(K, piv, R)
+
+
+@kernel
 def assemble_gradient(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G):
     """G[nu] = dL_d/dq^nu for all nu = 0..s."""
     r = b.shape[0]
@@ -84,7 +174,11 @@ def assemble_gradient(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G):
 
 @kernel
 def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K):
-    """G as above and K[(nu, a), (mu, c)] = dG^nu_a / dq^mu_c, nu = 0..s-1, mu = 1..s."""
+    """G as above and K[(nu, a), (mu, c)] = dG^nu_a / dq^mu_c, nu = 0..s-1, mu = 1..s.
+
+    K is stored as :func:`new_jacobian` allocates it, rows and columns placed by
+    :func:`unknown`.
+    """
     r = b.shape[0]
     s1, n = C.shape
     s = s1 - 1
@@ -100,24 +194,20 @@ def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv
                 G[nu, a] += wq * Lq[a] + wv * Lv[a]
         for nu in range(s):
             for mu in range(1, s1):
-                w_qq = b[i] * h * Phi[i, nu] * Phi[i, mu]
-                w_qv = b[i] * Phi[i, nu] * D[i, mu]
-                w_vq = b[i] * D[i, nu] * Phi[i, mu]
-                w_vv = b[i] * D[i, nu] * D[i, mu] / h
-                row0 = nu * n
-                col0 = (mu - 1) * n
-                for a in range(n):
-                    for cc in range(n):
-                        K[row0 + a, col0 + cc] += w_vv * Lvv[a, cc]
-                # collocated Lobatto nodes (Phi = I): L_qq only on the diagonal blocks
-                if w_qq != 0.0:
-                    for a in range(n):
-                        for cc in range(n):
-                            K[row0 + a, col0 + cc] += w_qq * Lqq[a, cc]
-                if HAS_LQV and (w_qv != 0.0 or w_vq != 0.0):
-                    for a in range(n):
-                        for cc in range(n):
-                            K[row0 + a, col0 + cc] += w_qv * Lqv[a, cc] + w_vq * Lqv[cc, a]
+                add_block(
+                    K,
+                    nu,
+                    mu,
+                    s,
+                    n,
+                    b[i] * D[i, nu] * D[i, mu] / h,
+                    Lvv,
+                    b[i] * h * Phi[i, nu] * Phi[i, mu],
+                    Lqq,
+                    b[i] * Phi[i, nu] * D[i, mu],
+                    b[i] * D[i, nu] * Phi[i, mu],
+                    Lqv,
+                )
 
 
 @kernel
@@ -141,9 +231,7 @@ def assemble_mass_matrix(t0, h, q0, v0, prm, b, D, work, Kc):
         for nu in range(s):
             for mu in range(1, s + 1):
                 w = b[i] * D[i, nu] * D[i, mu] / h
-                for a in range(n):
-                    for cc in range(n):
-                        Kc[nu * n + a, (mu - 1) * n + cc] += w * Lvv[a, cc]
+                add_block(Kc, nu, mu, s, n, w, Lvv, 0.0, Lqq, 0.0, 0.0, Lqv)
 
 
 @kernel
@@ -230,24 +318,25 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, Kc, pi
         for nu in range(s):
             for a in range(n):
                 val = G[nu, a] + (pk[a] if nu == 0 else 0.0)
-                R[nu * n + a] = -val
+                R[unknown(nu, a, s, n)] = -val
                 if not abs(val) <= residual:  # also catches NaN
                     residual = abs(val)
         if not residual < 1e300:
             return STATUS_NONFINITE, it, np.inf, residual, switched
         if cheap:
-            lu_solve_inplace(Kc, pivc, R)
+            solve_jacobian(Kc, pivc, s, R)
         else:
-            if not frozen and not lu_factor_inplace(K, piv):
+            if not frozen and not factor_jacobian(K, piv, s):
                 return STATUS_SINGULAR, it, np.inf, residual, switched
-            lu_solve_inplace(K, piv, R)
+            solve_jacobian(K, piv, s, R)
         increment = 0.0
         size = 0.0
         for nu in range(1, s1):
             for a in range(n):
-                C[nu, a] += R[(nu - 1) * n + a]
-                if abs(R[(nu - 1) * n + a]) > increment:
-                    increment = abs(R[(nu - 1) * n + a])
+                delta = R[unknown(nu - 1, a, s, n)]
+                C[nu, a] += delta
+                if abs(delta) > increment:
+                    increment = abs(delta)
                 if abs(C[nu, a]) > size:
                     size = abs(C[nu, a])
         if (
@@ -279,14 +368,22 @@ def make_work(s, n):
     V = np.zeros(n)
     Lq = np.zeros(n)
     Lv = np.zeros(n)
-    Lqq = np.zeros((n, n))
-    Lqv = np.zeros((n, n))
-    Lvv = np.zeros((n, n))
+    Lqq = np.zeros(NNZ)
+    Lqv = np.zeros(NNZ)
+    Lvv = np.zeros(NNZ)
     G = np.zeros((s + 1, n))
-    K = np.zeros((s * n, s * n))
+    K = new_jacobian(s, n)
     R = np.zeros(s * n)
     piv = np.zeros(s * n, dtype=np.int64)
     return (Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv)
+
+
+@kernel
+def new_jacobian(s, n):
+    """Zero stage Jacobian: banded storage (3 kb + 1, s n) or dense (s n, s n)."""
+    if BANDED:
+        return np.zeros((3 * band_half_width(s) + 1, s * n))
+    return np.zeros((s * n, s * n))
 
 
 @kernel
@@ -326,11 +423,11 @@ def integrate_kernel(
     s = s1 - 1
     work = make_work(s, n)
     G = work[7]
-    Kc = np.zeros((s * n, s * n))
+    Kc = new_jacobian(s, n)
     pivc = np.zeros(s * n, dtype=np.int64)
     if constant_mass:
         assemble_mass_matrix(t0, h, q0, v0, prm, b, D, work, Kc)
-        constant_mass = lu_factor_inplace(Kc, pivc)
+        constant_mass = factor_jacobian(Kc, pivc, s)
     retry_in = 0
     C = np.zeros((s1, n))
     C_prev = np.zeros((s1, n))
@@ -477,7 +574,7 @@ def linear_kernel(
     pk = p0.copy()
     first_guess(C, d, h, v0)
     assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K)
-    if not lu_factor_inplace(K, piv):
+    if not factor_jacobian(K, piv, s):
         return STATUS_SINGULAR, 0, save_row(0, t0, qk, pk, t_out, q_out, p_out)
     saved = save_row(0, t0, qk, pk, t_out, q_out, p_out)
     for k in range(n_steps):
@@ -487,11 +584,11 @@ def linear_kernel(
         assemble_gradient(tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
         for nu in range(s):
             for a in range(n):
-                R[nu * n + a] = -(G[nu, a] + (pk[a] if nu == 0 else 0.0))
-        lu_solve_inplace(K, piv, R)
+                R[unknown(nu, a, s, n)] = -(G[nu, a] + (pk[a] if nu == 0 else 0.0))
+        solve_jacobian(K, piv, s, R)
         for nu in range(1, s1):
             for a in range(n):
-                C[nu, a] += R[(nu - 1) * n + a]
+                C[nu, a] += R[unknown(nu - 1, a, s, n)]
         assemble_gradient(tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
         finite = True
         for a in range(n):
