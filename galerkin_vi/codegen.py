@@ -241,6 +241,46 @@ def _function_body(
     return lines or ["    pass"]
 
 
+# numba's compile time grows faster than linearly with a function's length: large
+# point functions are split into parts of this many entries, compiled separately
+POINT_CHUNK = 200
+
+
+def _point_function(
+    name: str,
+    params: str,
+    entries: list[tuple[str, sp.Expr]],
+    large: bool,
+    returns: sp.Expr | None = None,
+) -> list[str]:
+    """Source lines of one point function, split into parts when ``large``."""
+    if not large:
+        body = _function_body(entries, returns=returns)
+        return ["", "", "@point_kernel", f"def {name}({params}):", *body]
+    if returns is not None:
+        terms = sp.Add.make_args(returns)
+        pieces = [
+            ([], sp.Add(*terms[k : k + POINT_CHUNK])) for k in range(0, len(terms), POINT_CHUNK)
+        ]
+    else:
+        pieces = [(entries[k : k + POINT_CHUNK], None) for k in range(0, len(entries), POINT_CHUNK)]
+    lines: list[str] = []
+    calls = []
+    for k, (chunk, partial) in enumerate(pieces):
+        part = f"{name}_part{k}"
+        lines += ["", "", "@point_kernel", f"def {part}({params}):"]
+        lines += _function_body(chunk, returns=partial, large=True)
+        calls.append(f"{part}({params})")
+    lines += ["", "", "@point_kernel", f"def {name}({params}):"]
+    if returns is not None:
+        lines.append("    total = 0.0")
+        lines += [f"    total += {call}" for call in calls]
+        lines.append("    return total")
+    else:
+        lines += [f"    {call}" for call in calls] or ["    pass"]
+    return lines
+
+
 # Python's parser nests a + b + c + ... one level per operator: long sums are
 # accumulated in chunks (a Lagrangian of 1000 springs otherwise fails to compile)
 _SUM_CHUNK = 32
@@ -324,19 +364,16 @@ def render_module(
         *_pattern_lines(spec),
         "",
         "",
-        "@point_kernel",
-        "def point_gradient(t, q, v, prm, Lq, Lv):",
-        *_function_body(list(spec.gradient_entries), large=large),
-        "",
-        "",
-        "@point_kernel",
-        "def point_hessian(t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv):",
-        *_function_body(list(spec.hessian_entries), large=large),
-        "",
-        "",
-        "@point_kernel",
-        "def lagrangian(t, q, v, prm):",
-        *_function_body([], returns=spec.lagrangian, large=large),
+        *_point_function(
+            "point_gradient", "t, q, v, prm, Lq, Lv", list(spec.gradient_entries), large
+        ),
+        *_point_function(
+            "point_hessian",
+            "t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv",
+            list(spec.hessian_entries),
+            large,
+        ),
+        *_point_function("lagrangian", "t, q, v, prm", [], large, returns=spec.lagrangian),
         "",
     ]
     newton = _kernel_section("newton.py")

@@ -61,7 +61,9 @@ class FlatEvaluator:
     def _setup(self, n_out: int, entries: dict[int, sp.Expr], args: Sequence[sp.Symbol]) -> None:
         self.n_out = n_out
         self._slots = np.fromiter(entries, dtype=np.int64, count=len(entries))
-        self._fn: Callable = sp.lambdify(list(args), list(entries.values()), modules="numpy", cse=True)
+        self._fn: Callable = sp.lambdify(
+            list(args), list(entries.values()), modules="numpy", cse=True
+        )
 
     def __call__(self, *values: NDArray | float) -> NDArray[np.float64]:
         shape = np.broadcast_shapes(*(np.shape(x) for x in values))

@@ -91,9 +91,7 @@ class _TermDerivatives:
     def __call__(self, term: sp.Expr, wanted: dict[sp.Symbol, int]) -> dict[sp.Symbol, sp.Expr]:
         """``{s: d term / d s}`` for the symbols of ``term`` that are keys of ``wanted``."""
         symbols = sorted(term.free_symbols, key=sp.default_sort_key)
-        placeholders = [
-            sp.Symbol(f"_gvi_x{k}", **s.assumptions0) for k, s in enumerate(symbols)
-        ]
+        placeholders = [sp.Symbol(f"_gvi_x{k}", **s.assumptions0) for k, s in enumerate(symbols)]
         template = term.xreplace(dict(zip(symbols, placeholders, strict=True)))
         derivatives = self._cache.setdefault(template, {})
         back = dict(zip(placeholders, symbols, strict=True))
