@@ -272,7 +272,9 @@ class Integrator:
         t_out = np.empty(n_saved)
         q_out = np.empty((n_saved, system.n))
         p_out = np.empty((n_saved, system.n))
-        iterations = np.zeros(n_steps, dtype=np.uint8)  # 1 byte a step: 1e7 steps, 10 MB
+        # per saved interval, not per step: a 1e7-step run with save_every stores nothing per step
+        iterations = np.zeros(-(-n_steps // save_every), dtype=np.uint8)
+        iteration_total = np.zeros(1, dtype=np.int64)
         tb = self.method.tables
         args = (q0, p0_arr, v0_arr, t0, h, n_steps, int(save_every), prm)
         outputs = (t_out, q_out, p_out)
@@ -290,7 +292,8 @@ class Integrator:
             status, done, saved = self._kernels.linear_kernel(
                 *args, tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation, *outputs
             )
-            iterations[:done] = 1
+            iterations[: -(-done // save_every)] = 1
+            iteration_total[0] = done
             worst, increment = 0.0, np.nan
         elif self.backend == "numba":
             status, done, saved, worst, increment = self._kernels.integrate_kernel(
@@ -306,16 +309,19 @@ class Integrator:
                 self.uses_constant_mass,
                 *outputs,
                 iterations,
+                iteration_total,
             )
         else:
             status, done, saved, worst, increment = numpy_backend.integrate(
-                system, tb, *args, self.tol, self.maxiter, *outputs, iterations
+                system, tb, *args, self.tol, self.maxiter, *outputs, iterations, iteration_total
             )
         traj = Trajectory(
             t=t_out[:saved],
             q=q_out[:saved],
             p=p_out[:saved],
-            newton_iterations=iterations[: done + (status != 0)],
+            newton_iterations=iterations[: -(-(done + (status != 0)) // int(save_every))],
+            total_newton_iterations=int(iteration_total[0]),
+            n_steps=int(done + (status != 0)),
             max_residual=float(worst),
             system=system,
             params=prm,

@@ -60,15 +60,24 @@ class FlatEvaluator:
 
     def _setup(self, n_out: int, entries: dict[int, sp.Expr], args: Sequence[sp.Symbol]) -> None:
         self.n_out = n_out
-        self._slots = np.fromiter(entries, dtype=np.int64, count=len(entries))
-        self._fn: Callable = sp.lambdify(
-            list(args), list(entries.values()), modules="numpy", cse=True
-        )
+        # long sums are evaluated in parts and added up: Python's compiler recurses once
+        # per "+" and fails on a Lagrangian of a thousand springs
+        slots, parts = [], []
+        for slot, expr in entries.items():
+            terms = sp.Add.make_args(expr)
+            for k in range(0, len(terms), _SUM_CHUNK):
+                slots.append(slot)
+                parts.append(sp.Add(*terms[k : k + _SUM_CHUNK]))
+        self._slots = np.array(slots, dtype=np.int64)
+        self._fn: Callable = sp.lambdify(list(args), parts, modules="numpy", cse=True)
 
     def __call__(self, *values: NDArray | float) -> NDArray[np.float64]:
         shape = np.broadcast_shapes(*(np.shape(x) for x in values))
         results = self._fn(*values)
         out = np.zeros(shape + (self.n_out,))
         for j, r in zip(self._slots, results, strict=True):
-            out[..., j] = r
+            out[..., j] += r
         return out
+
+
+_SUM_CHUNK = 64

@@ -7,7 +7,6 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-import scipy.linalg
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 from sympy.core.function import AppliedUndef
@@ -396,6 +395,8 @@ def is_regular(m: NDArray) -> bool:
     if m.shape[0] <= 64:
         s = np.linalg.svd(m, compute_uv=False)
         return bool(s[-1] > 1e-12 * max(s[0], 1.0))
+    import scipy.linalg  # here, not at import: SciPy adds 35 MB to every process
+
     norm = np.abs(m).sum(axis=0).max()
     if not np.isfinite(norm) or norm == 0.0:
         return False

@@ -23,8 +23,14 @@ class Trajectory:
     t : ndarray, shape (N,)
     q, p : ndarray, shape (N, n)
         Positions and discrete momenta :math:`p_k = D_2 L_d(q_{k-1}, q_k)`.
-    newton_iterations : ndarray of int, shape (steps,)
-        Newton iterations of every step taken (saved or not).
+    newton_iterations : ndarray of uint8, shape (ceil(steps / save_every),)
+        Largest Newton iteration count among the steps between consecutive
+        saved states (one entry per step when ``save_every = 1``), the failing
+        step of a failed run included.
+    total_newton_iterations : int
+        Newton iterations of all steps taken.
+    n_steps : int
+        Steps taken (the failing one included).
     max_residual : float
         Largest stage-equation residual (max-norm) at the last Newton
         iteration of any step.
@@ -36,10 +42,12 @@ class Trajectory:
     t: NDArray[np.float64]
     q: NDArray[np.float64]
     p: NDArray[np.float64]
-    newton_iterations: NDArray[np.int64]
+    newton_iterations: NDArray[np.uint8]
     max_residual: float
     system: LagrangianSystem
     params: NDArray[np.float64]
+    total_newton_iterations: int = 0
+    n_steps: int = 0
 
     def __len__(self) -> int:
         return self.t.shape[0]
@@ -47,8 +55,7 @@ class Trajectory:
     @property
     def mean_newton_iterations(self) -> float:
         """Mean number of Newton iterations per step."""
-        its = self.newton_iterations
-        return float(its.mean()) if its.size else 0.0
+        return self.total_newton_iterations / self.n_steps if self.n_steps else 0.0
 
     def _param_dict(self) -> dict[sp.Symbol, float]:
         return dict(zip(self.system.params, self.params, strict=True))

@@ -297,7 +297,16 @@ def test_save_every(pendulum_integrator, n_steps, save_every):
     np.testing.assert_array_equal(part.q, full.q[rows])
     np.testing.assert_array_equal(part.p, full.p[rows])
     np.testing.assert_allclose(part.t, t0 + h * np.array(rows), rtol=0, atol=1e-15)  # meas. 0
-    assert part.newton_iterations.shape == (n_steps,)  # every step, saved or not
+    # per saved interval: the worst step of each; the mean over all steps
+    intervals = -(-n_steps // save_every)
+    assert part.newton_iterations.shape == (intervals,)
+    worst = [
+        full.newton_iterations[j * save_every : (j + 1) * save_every].max()
+        for j in range(intervals)
+    ]
+    np.testing.assert_array_equal(part.newton_iterations, worst)
+    assert part.total_newton_iterations == full.newton_iterations.sum()
+    assert part.mean_newton_iterations == pytest.approx(full.newton_iterations.mean())
 
 
 def test_full_run_shapes_and_times(pendulum_integrator):
@@ -491,7 +500,9 @@ def test_convergence_error_mid_run_keeps_the_partial_trajectory(blow_up, backend
     assert partial.t[-1] == pytest.approx(t0 + err.step * h, rel=1e-15)
     due = t0 + h * save_every * np.arange(err.step // save_every + 1)
     np.testing.assert_allclose(partial.t[: due.size], due, rtol=1e-15)
-    assert partial.newton_iterations.shape == (err.step + 1,)  # the failing step included
+    # one entry per saved interval, the failing step's included
+    assert partial.newton_iterations.shape == (err.step // save_every + 1,)
+    assert partial.n_steps == err.step + 1
     # ... and equal to a successful run that stops just before the failure
     shorter = integrator.integrate(
         [1.0], [0.0], h=h, n_steps=err.step, t0=t0, save_every=save_every

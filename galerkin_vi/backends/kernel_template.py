@@ -409,8 +409,14 @@ def integrate_kernel(
     q_out,
     p_out,
     iterations_out,
+    iteration_total,
 ):
     """Run ``n_steps`` steps of the position–momentum map from (q0, p0).
+
+    ``iterations_out[j]`` receives the largest Newton iteration count of steps
+    ``j*save_every .. (j+1)*save_every - 1`` (every step when save_every = 1) and
+    ``iteration_total[0]`` their sum: a long run with ``save_every`` stores
+    nothing per step.
 
     With ``constant_mass`` (the system's :math:`L_{vv}` is constant and
     :math:`L_{qv} = 0`) the stage equations are first iterated with the
@@ -449,7 +455,10 @@ def integrate_kernel(
             retry_in = MASS_RETRY
         elif retry_in > 0:
             retry_in -= 1
-        iterations_out[k] = its
+        slot = k // save_every
+        if its > iterations_out[slot]:
+            iterations_out[slot] = its
+        iteration_total[0] += its
         if status == STATUS_OK:
             assemble_gradient(
                 tk, h, qk, C, prm, b, c, Phi, D, work[0], work[1], work[2], work[3], G

@@ -128,6 +128,7 @@ def integrate(
     q_out: NDArray,
     p_out: NDArray,
     iterations_out: NDArray,
+    iteration_total: NDArray,
 ) -> tuple[int, int, int, float, float]:
     """Same contract as the compiled ``integrate_kernel`` (see kernel_template)."""
     d, E = tables.d, tables.extrapolation
@@ -144,7 +145,9 @@ def integrate(
             C = E[:, 1:] @ C[1:] - C[s]
             C[0] = 0.0
         C, result = solve_step(system, tables, tk, h, qk, pk, C, prm, tol, maxiter)
-        iterations_out[k] = result.iterations
+        slot = k // save_every
+        iterations_out[slot] = max(iterations_out[slot], result.iterations)
+        iteration_total[0] += result.iterations
         status = 0 if result.status == CONVERGED else 1
         if status == 0:
             p_next = discrete_gradient(system, tables, tk, h, qk, C, prm)[s]

@@ -1,11 +1,31 @@
 r"""Hand-written numba kernels: the "compiled limit" the generated code is measured against.
 
-Everything here is written by hand for the separable Hamiltonian
-:math:`H(q, p) = \tfrac12|p|^2 + V(q)` of two problems, with hand-derived
-gradient and Hessian of the potential:
+Everything here is written by hand for separable Hamiltonians with a constant,
+diagonal mass matrix, :math:`H(q, p) = \tfrac12 p^T M^{-1} p + V(q)`, with
+hand-derived gradient and Hessian of the potential. The kernels work in
+positions and *velocities* :math:`v = M^{-1}p`, i.e. on
+:math:`\ddot q = -M^{-1}\nabla V(q)`: ``grad_v`` returns the force per unit
+mass :math:`M^{-1}\nabla V` and ``grad_hess_v`` also its Jacobian
+:math:`M^{-1}\nabla^2 V`. Gauss collocation, Lobatto IIIA–IIIB and
+Störmer–Verlet commute with the linear map :math:`p = Mv` (M constant), so
+the kernels are still the same methods as galerkin_vi's on :math:`L = \tfrac12
+v^TMv - V(q)`; their ``p`` output is the velocity. The problems, selected by
+an integer id with a parameter vector ``prm``:
 
-* pendulum, :math:`V(q) = -\cos q` (``PENDULUM``, one degree of freedom);
-* Kepler, :math:`V(q) = -1/|q|` (``KEPLER``, two degrees of freedom).
+* ``PENDULUM``: :math:`V = -\cos q` (``prm`` empty);
+* ``KEPLER``: :math:`V = -1/|q|` (``prm`` empty);
+* ``HENON_HEILES``: :math:`V = \tfrac12(x^2 + y^2) + x^2y - \tfrac13y^3` (``prm`` empty);
+* ``SPRINGS``: d equal masses on a line between walls, spring j
+  (j = 0..d, between :math:`q_j` and :math:`q_{j+1}`, :math:`q_0 = q_{d+1} = 0`)
+  with :math:`\varphi_j(e) = \tfrac{a}{2}e^2 + \tfrac{b}{4}e^4`;
+  ``prm = (a_even, b_even, a_odd, b_odd, 1/m)`` (:func:`springs_params`): the
+  Fermi–Pasta–Ulam problem (even springs soft cubic, odd springs stiff linear)
+  and the FPU-beta spring chain (all springs alike);
+* ``N_BODY``: 3-D gravitation, :math:`V = -G\sum_{i<j} m_im_j/|q_i - q_j|`,
+  ``prm = (G, m_0, .., m_{K-1})`` (:func:`n_body_params`): the outer solar system;
+* ``DOUBLE_PENDULUM``: non-separable, so only the scipy right-hand side
+  (:func:`rhs`, :func:`jac`) and :func:`energy` exist for it, with
+  ``prm = (m1, m2, l1, l2, g)``.
 
 Kernels
 -------
@@ -16,11 +36,12 @@ Kernels
     :math:`s`-stage Gauss–Legendre collocation on Hamilton's equations, the
     momenta eliminated: the unknowns are the stage increments
     :math:`Z_i = Q_i - q_k` with
-    :math:`Z_i - h c_i p_k + h^2 \sum_j (A^2)_{ij} \nabla V(q_k + Z_j) = 0`,
+    :math:`Z_i - h c_i v_k + h^2 \sum_j (A^2)_{ij} M^{-1}\nabla V(q_k + Z_j) = 0`,
     solved by full Newton (exact Hessian of :math:`V` at every stage, every
-    iteration) or simplified Newton (Hessian at :math:`q_k`, factorised once
-    per step). Equal to galerkin_vi's degree :math:`s` with
-    ``gauss_legendre(s)``.
+    iteration), simplified Newton (Hessian at :math:`q_k`, factorised once
+    per step) or fixed-point iteration (the Jacobian replaced by the identity:
+    no Hessian, no linear solve; the usual choice for non-stiff N-body
+    problems). Equal to galerkin_vi's degree :math:`s` with ``gauss_legendre(s)``.
 :func:`lobatto_iiia_iiib`
     The partitioned :math:`r`-stage Lobatto IIIA–IIIB pair (order
     :math:`2r-2`) for separable :math:`H`, full Newton on the positions of the
@@ -30,11 +51,11 @@ Kernels
 All kernels follow galerkin_vi's Newton policy so that "the same method at the
 same h and Newton tolerance" is a like-for-like comparison: the initial guess
 is the previous step's collocation polynomial extrapolated (on the first step
-the straight line :math:`q_k + c_i h p_k`); the iteration stops when the
+the straight line :math:`q_k + c_i h v_k`); the iteration stops when the
 increment is exactly zero, or once it is below
 :math:`\mathrm{tol}\,(1 + \|Z\|_\infty)` when it stops decreasing, capped at
 ``maxiter``; after convergence the gradients are evaluated once more at the
-converged stages to form :math:`(q_{k+1}, p_{k+1})`.
+converged stages to form :math:`(q_{k+1}, v_{k+1})`.
 
 The problem is selected by an integer id rather than by passing a jitted force
 function: numba cannot cache a kernel that takes a function argument (it
@@ -44,6 +65,10 @@ number of degrees of freedom is a run-time value, as in galerkin_vi's kernel;
 hard-coding d = 2 makes that Störmer–Verlet 12 % faster (21.6 ns/step). Method
 tables are computed with mpmath at 40 digits and rounded once
 (:func:`gauss_tables`, :func:`lobatto_tables`).
+
+The same hand-derived functions give the numba right-hand sides and Jacobians
+handed to scipy's ``solve_ivp`` (:func:`rhs`, :func:`jac`, state ``y = (q, v)``)
+and the C-callable right-hand side of numbalsoda (:func:`numbalsoda_rhs_address`).
 """
 
 # ruff: noqa: N803, N806
@@ -60,29 +85,45 @@ from numpy.typing import NDArray
 from .. import newton
 
 __all__ = [
+    "DOUBLE_PENDULUM",
+    "HENON_HEILES",
     "KEPLER",
+    "N_BODY",
     "PENDULUM",
+    "SPRINGS",
     "GaussTables",
     "KernelRun",
     "LobattoTables",
     "energy",
     "gauss_collocation",
     "gauss_tables",
-    "kepler_jac",
-    "kepler_rhs",
+    "jac",
     "lobatto_iiia_iiib",
     "lobatto_tables",
-    "pendulum_jac",
-    "pendulum_rhs",
+    "n_body_params",
+    "numbalsoda_data",
+    "numbalsoda_rhs_address",
     "potential",
+    "rhs",
     "run_gauss",
     "run_lobatto",
     "run_verlet",
+    "springs_params",
     "stormer_verlet",
 ]
 
 PENDULUM = 0
 KEPLER = 1
+HENON_HEILES = 2
+SPRINGS = 3
+N_BODY = 4
+DOUBLE_PENDULUM = 5
+
+#: Newton variants of :func:`gauss_collocation`
+FULL_NEWTON = 0
+SIMPLIFIED_NEWTON = 1
+FIXED_POINT = 2
+_ITERATIONS = {"full": FULL_NEWTON, "simplified": SIMPLIFIED_NEWTON, "fixed-point": FIXED_POINT}
 
 STATUS_OK = 0
 STATUS_NEWTON_FAILED = 1
@@ -91,35 +132,132 @@ STATUS_NONFINITE = 3
 
 _TABLE_DIGITS = 40
 
+_NO_PARAMS = np.zeros(0)
+
+
+def springs_params(
+    a_even: float, b_even: float, a_odd: float, b_odd: float, mass: float = 1.0
+) -> NDArray[np.float64]:
+    r"""``prm`` of ``SPRINGS``: spring j has :math:`\varphi(e) = \frac a2 e^2 + \frac b4 e^4`.
+
+    Fermi–Pasta–Ulam with stiffness :math:`\omega`: ``springs_params(0, 4, omega**2/2, 0)``
+    (soft :math:`e^4` on the even springs, stiff :math:`\omega^2e^2/4` on the odd ones);
+    the spring chain with ``k``, ``beta``, ``m``: ``springs_params(k, beta, k, beta, m)``.
+    """
+    return np.array([a_even, b_even, a_odd, b_odd, 1.0 / mass], dtype=float)
+
+
+def n_body_params(G: float, masses) -> NDArray[np.float64]:
+    """``prm`` of ``N_BODY``: the gravitational constant, then the masses."""
+    return np.array([G, *masses], dtype=float)
+
 
 # --------------------------------------------------------------------- potentials
 @nb.njit(cache=True)
-def potential(problem, q):
-    """V(q): -cos q (pendulum) or -1/|q| (Kepler)."""
-    if problem == PENDULUM:
-        return -np.cos(q[0])
-    return -1.0 / np.sqrt(q[0] * q[0] + q[1] * q[1])
+def _spring(prm, j):
+    """(a, b) of spring j."""
+    if j % 2 == 0:
+        return prm[0], prm[1]
+    return prm[2], prm[3]
 
 
 @nb.njit(cache=True)
-def grad_v(problem, q, g):
-    """g = grad V(q)."""
+def potential(problem, q, prm):
+    """V(q) of the problem (see the module docstring)."""
+    if problem == PENDULUM:
+        return -np.cos(q[0])
+    if problem == KEPLER:
+        return -1.0 / np.sqrt(q[0] * q[0] + q[1] * q[1])
+    if problem == HENON_HEILES:
+        x = q[0]
+        y = q[1]
+        return 0.5 * (x * x + y * y) + x * x * y - y * y * y / 3.0
+    if problem == SPRINGS:
+        d = q.shape[0]
+        v = 0.0
+        left = 0.0
+        for j in range(d + 1):
+            right = q[j] if j < d else 0.0
+            e = right - left
+            a, b = _spring(prm, j)
+            v += e * e * (0.5 * a + 0.25 * b * e * e)
+            left = right
+        return v
+    if problem == N_BODY:
+        G = prm[0]
+        K = q.shape[0] // 3
+        v = 0.0
+        for i in range(K):
+            for j in range(i + 1, K):
+                dx = q[3 * i] - q[3 * j]
+                dy = q[3 * i + 1] - q[3 * j + 1]
+                dz = q[3 * i + 2] - q[3 * j + 2]
+                v -= G * prm[1 + i] * prm[1 + j] / np.sqrt(dx * dx + dy * dy + dz * dz)
+        return v
+    # DOUBLE_PENDULUM: prm = (m1, m2, l1, l2, g)
+    return -(prm[0] + prm[1]) * prm[4] * prm[2] * np.cos(q[0]) - prm[1] * prm[4] * prm[3] * np.cos(
+        q[1]
+    )
+
+
+@nb.njit(cache=True)
+def grad_v(problem, q, g, prm):
+    """g = M^-1 grad V(q) (separable problems)."""
     if problem == PENDULUM:
         g[0] = np.sin(q[0])
-    else:
+    elif problem == KEPLER:
         r2 = q[0] * q[0] + q[1] * q[1]
         ir3 = 1.0 / (r2 * np.sqrt(r2))
         g[0] = q[0] * ir3
         g[1] = q[1] * ir3
+    elif problem == HENON_HEILES:
+        x = q[0]
+        y = q[1]
+        g[0] = x + 2.0 * x * y
+        g[1] = y + x * x - y * y
+    elif problem == SPRINGS:
+        d = q.shape[0]
+        inv_m = prm[4]
+        left = 0.0
+        for j in range(d + 1):
+            right = q[j] if j < d else 0.0
+            e = right - left
+            a, b = _spring(prm, j)
+            f = e * (a + b * e * e) * inv_m
+            if j < d:
+                g[j] = f
+            if j > 0:
+                g[j - 1] -= f
+            left = right
+    else:  # N_BODY
+        G = prm[0]
+        K = q.shape[0] // 3
+        for a in range(q.shape[0]):
+            g[a] = 0.0
+        for i in range(K):
+            for j in range(i + 1, K):
+                dx = q[3 * i] - q[3 * j]
+                dy = q[3 * i + 1] - q[3 * j + 1]
+                dz = q[3 * i + 2] - q[3 * j + 2]
+                r2 = dx * dx + dy * dy + dz * dz
+                ir3 = G / (r2 * np.sqrt(r2))
+                fi = prm[1 + j] * ir3
+                fj = prm[1 + i] * ir3
+                g[3 * i] += fi * dx
+                g[3 * i + 1] += fi * dy
+                g[3 * i + 2] += fi * dz
+                g[3 * j] -= fj * dx
+                g[3 * j + 1] -= fj * dy
+                g[3 * j + 2] -= fj * dz
 
 
 @nb.njit(cache=True)
-def grad_hess_v(problem, q, g, H):
-    """g = grad V(q) and H = Hessian of V at q."""
+def grad_hess_v(problem, q, g, H, prm):
+    """g = M^-1 grad V(q) and H = M^-1 (Hessian of V) at q (separable problems)."""
     if problem == PENDULUM:
         g[0] = np.sin(q[0])
         H[0, 0] = np.cos(q[0])
-    else:
+    elif problem == KEPLER:
         x = q[0]
         y = q[1]
         r2 = x * x + y * y
@@ -131,60 +269,221 @@ def grad_hess_v(problem, q, g, H):
         H[1, 1] = ir3 - ir5 * y * y
         H[0, 1] = -ir5 * x * y
         H[1, 0] = H[0, 1]
+    elif problem == HENON_HEILES:
+        x = q[0]
+        y = q[1]
+        g[0] = x + 2.0 * x * y
+        g[1] = y + x * x - y * y
+        H[0, 0] = 1.0 + 2.0 * y
+        H[0, 1] = 2.0 * x
+        H[1, 0] = 2.0 * x
+        H[1, 1] = 1.0 - 2.0 * y
+    elif problem == SPRINGS:  # tridiagonal; only the band is written after zeroing it
+        d = q.shape[0]
+        inv_m = prm[4]
+        left = 0.0
+        for j in range(d):
+            H[j, j] = 0.0
+            if j > 0:
+                H[j, j - 1] = 0.0
+                H[j - 1, j] = 0.0
+        for j in range(d + 1):
+            right = q[j] if j < d else 0.0
+            e = right - left
+            a, b = _spring(prm, j)
+            f = e * (a + b * e * e) * inv_m
+            k = (a + 3.0 * b * e * e) * inv_m
+            if j < d:
+                g[j] = f
+                H[j, j] += k
+            if j > 0:
+                g[j - 1] -= f
+                H[j - 1, j - 1] += k
+            if 0 < j < d:
+                H[j, j - 1] -= k
+                H[j - 1, j] -= k
+            left = right
+    else:  # N_BODY
+        G = prm[0]
+        d = q.shape[0]
+        K = d // 3
+        for a in range(d):
+            g[a] = 0.0
+            for c in range(d):
+                H[a, c] = 0.0
+        dd = np.empty(3)
+        for i in range(K):
+            for j in range(i + 1, K):
+                for c in range(3):
+                    dd[c] = q[3 * i + c] - q[3 * j + c]
+                r2 = dd[0] * dd[0] + dd[1] * dd[1] + dd[2] * dd[2]
+                ir3 = G / (r2 * np.sqrt(r2))
+                ir5 = 3.0 * ir3 / r2
+                mi = prm[1 + i]
+                mj = prm[1 + j]
+                for a in range(3):
+                    g[3 * i + a] += mj * ir3 * dd[a]
+                    g[3 * j + a] -= mi * ir3 * dd[a]
+                    for c in range(3):
+                        B = -ir5 * dd[a] * dd[c]
+                        if a == c:
+                            B += ir3
+                        H[3 * i + a, 3 * i + c] += mj * B
+                        H[3 * i + a, 3 * j + c] -= mj * B
+                        H[3 * j + a, 3 * j + c] += mi * B
+                        H[3 * j + a, 3 * i + c] -= mi * B
 
 
 @nb.njit(cache=True)
-def energy(problem, q, p):
-    """H(q, p) = |p|^2/2 + V(q) for every row of q, p (shape (N, d))."""
+def _double_pendulum_kinetic(q, v, prm):
+    m1, m2, l1, l2 = prm[0], prm[1], prm[2], prm[3]
+    return (
+        0.5 * (m1 + m2) * l1 * l1 * v[0] * v[0]
+        + 0.5 * m2 * l2 * l2 * v[1] * v[1]
+        + m2 * l1 * l2 * np.cos(q[0] - q[1]) * v[0] * v[1]
+    )
+
+
+@nb.njit(cache=True)
+def _inverse_mass(problem, a, prm):
+    """(M^-1)_aa of a separable problem."""
+    if problem == SPRINGS:
+        return prm[4]
+    if problem == N_BODY:
+        return 1.0 / prm[1 + a // 3]
+    return 1.0
+
+
+@nb.njit(cache=True)
+def energy(problem, q, v, prm):
+    """H = T(q, v) + V(q) for every row of q, v (shape (N, d)); v are velocities."""
     out = np.empty(q.shape[0])
     for k in range(q.shape[0]):
-        kin = 0.0
-        for a in range(q.shape[1]):
-            kin += 0.5 * p[k, a] * p[k, a]
-        out[k] = kin + potential(problem, q[k])
+        if problem == DOUBLE_PENDULUM:
+            kin = _double_pendulum_kinetic(q[k], v[k], prm)
+        else:
+            kin = 0.0
+            for a in range(q.shape[1]):
+                kin += 0.5 * v[k, a] * v[k, a] / _inverse_mass(problem, a, prm)
+        out[k] = kin + potential(problem, q[k], prm)
     return out
 
 
 # -------------------------------------------------------- right-hand sides (scipy)
 @nb.njit(cache=True)
-def pendulum_rhs(t, y):
-    """y = (q, v): (v, -sin q)."""
-    return np.array([y[1], -np.sin(y[0])])
+def _double_pendulum_parts(y, prm):
+    """Mass matrix M(theta), right-hand side f with M a = f, and its pieces."""
+    m1, m2, l1, l2, g = prm[0], prm[1], prm[2], prm[3], prm[4]
+    s = np.sin(y[0] - y[1])
+    c = np.cos(y[0] - y[1])
+    k = m2 * l1 * l2
+    M11 = (m1 + m2) * l1 * l1
+    M22 = m2 * l2 * l2
+    M12 = k * c
+    f1 = -k * s * y[3] * y[3] - (m1 + m2) * g * l1 * np.sin(y[0])
+    f2 = k * s * y[2] * y[2] - m2 * g * l2 * np.sin(y[1])
+    det = M11 * M22 - M12 * M12
+    return M11, M12, M22, det, f1, f2, s, c, k
 
 
 @nb.njit(cache=True)
-def pendulum_jac(t, y):
-    """Jacobian of :func:`pendulum_rhs`."""
-    J = np.zeros((2, 2))
-    J[0, 1] = 1.0
-    J[1, 0] = -np.cos(y[0])
+def rhs_into(problem, y, dy, prm):
+    """dy = f(y) for y = (q, v): (v, -M^-1 grad V(q)), or the double pendulum's equations."""
+    n = y.shape[0] // 2
+    if problem == DOUBLE_PENDULUM:
+        M11, M12, M22, det, f1, f2, _, _, _ = _double_pendulum_parts(y, prm)
+        dy[0] = y[2]
+        dy[1] = y[3]
+        dy[2] = (M22 * f1 - M12 * f2) / det
+        dy[3] = (M11 * f2 - M12 * f1) / det
+        return
+    grad_v(problem, y[:n], dy[n:], prm)
+    for a in range(n):
+        dy[n + a] = -dy[n + a]
+        dy[a] = y[n + a]
+
+
+@nb.njit(cache=True)
+def rhs(problem, y, prm):
+    """f(y) of :func:`rhs_into` as a new array (scipy's ``fun(t, y)`` without t)."""
+    dy = np.empty_like(y)
+    rhs_into(problem, y, dy, prm)
+    return dy
+
+
+@nb.njit(cache=True)
+def jac(problem, y, prm):
+    """Jacobian of :func:`rhs` (dense)."""
+    m = y.shape[0]
+    n = m // 2
+    J = np.zeros((m, m))
+    for a in range(n):
+        J[a, n + a] = 1.0
+    if problem == DOUBLE_PENDULUM:
+        # a = M^-1 f: da/dz = M^-1 (df/dz - dM/dz a)
+        M11, M12, M22, det, f1, f2, s, c, k = _double_pendulum_parts(y, prm)
+        g = prm[4]
+        a1 = (M22 * f1 - M12 * f2) / det
+        a2 = (M11 * f2 - M12 * f1) / det
+        # dM12/dtheta1 = -k s, dM12/dtheta2 = k s
+        w1 = y[2]
+        w2 = y[3]
+        dfs = np.empty((2, 4))
+        dfs[0, 0] = -k * c * w2 * w2 - (prm[0] + prm[1]) * g * prm[2] * np.cos(y[0])
+        dfs[0, 1] = k * c * w2 * w2
+        dfs[0, 2] = 0.0
+        dfs[0, 3] = -2.0 * k * s * w2
+        dfs[1, 0] = k * c * w1 * w1
+        dfs[1, 1] = -k * c * w1 * w1 - prm[1] * g * prm[3] * np.cos(y[1])
+        dfs[1, 2] = 2.0 * k * s * w1
+        dfs[1, 3] = 0.0
+        for z in range(2):
+            dM12 = -k * s if z == 0 else k * s
+            dfs[0, z] -= dM12 * a2
+            dfs[1, z] -= dM12 * a1
+        for z in range(4):
+            J[2, z] = (M22 * dfs[0, z] - M12 * dfs[1, z]) / det
+            J[3, z] = (M11 * dfs[1, z] - M12 * dfs[0, z]) / det
+        return J
+    g = np.empty(n)
+    H = np.zeros((n, n))
+    grad_hess_v(problem, y[:n], g, H, prm)
+    for a in range(n):
+        for c in range(n):
+            J[n + a, c] = -H[a, c]
     return J
 
 
-@nb.njit(cache=True)
-def kepler_rhs(t, y):
-    """y = (x, y, vx, vy): (vx, vy, -x/r^3, -y/r^3)."""
-    r2 = y[0] * y[0] + y[1] * y[1]
-    ir3 = 1.0 / (r2 * np.sqrt(r2))
-    return np.array([y[2], y[3], -y[0] * ir3, -y[1] * ir3])
+@cache
+def numbalsoda_rhs_address() -> int:
+    """Address of a C right-hand side ``f(t, u, du, data)`` for numbalsoda.
+
+    ``data = (problem, n_state, len(prm), *prm)`` (:func:`numbalsoda_data`).
+    Compiled on the first call (numba ``cfunc``, not cached on disk); needs
+    numbalsoda only to be called.
+    """
+    sig = nb.types.void(
+        nb.types.double,
+        nb.types.CPointer(nb.types.double),
+        nb.types.CPointer(nb.types.double),
+        nb.types.CPointer(nb.types.double),
+    )
+
+    @nb.cfunc(sig)
+    def f(t, u, du, data):
+        m = int(data[1])
+        n_prm = int(data[2])
+        rhs_into(
+            int(data[0]), nb.carray(u, (m,)), nb.carray(du, (m,)), nb.carray(data, (n_prm + 3,))[3:]
+        )
+
+    return f.address
 
 
-@nb.njit(cache=True)
-def kepler_jac(t, y):
-    """Jacobian of :func:`kepler_rhs`."""
-    x = y[0]
-    z = y[1]
-    r2 = x * x + z * z
-    ir3 = 1.0 / (r2 * np.sqrt(r2))
-    ir5 = 3.0 * ir3 / r2
-    J = np.zeros((4, 4))
-    J[0, 2] = 1.0
-    J[1, 3] = 1.0
-    J[2, 0] = -(ir3 - ir5 * x * x)
-    J[3, 1] = -(ir3 - ir5 * z * z)
-    J[2, 1] = ir5 * x * z
-    J[3, 0] = J[2, 1]
-    return J
+def numbalsoda_data(problem: int, n_state: int, prm) -> NDArray[np.float64]:
+    """The ``data`` array of :func:`numbalsoda_rhs_address`: (problem, n_state, len(prm), *prm)."""
+    prm = np.asarray(prm, dtype=float)
+    return np.concatenate([[float(problem), float(n_state), float(prm.size)], prm])
 
 
 # ------------------------------------------------------------- linear algebra
@@ -206,13 +505,13 @@ def _newton_continue(increment, previous, size, tol, it, maxiter):
 
 # --------------------------------------------------------------- Störmer–Verlet
 @nb.njit(cache=True)
-def stormer_verlet(problem, q0, p0, h, n_steps, save_every, q_out, p_out):
+def stormer_verlet(problem, prm, q0, p0, h, n_steps, save_every, q_out, p_out):
     """Velocity Verlet; saves rows at k % save_every == 0 and the last step. Returns rows saved."""
     d = q0.shape[0]
     q = q0.copy()
     p = p0.copy()
     g = np.empty(d)
-    grad_v(problem, q, g)
+    grad_v(problem, q, g, prm)
     half = 0.5 * h
     q_out[0, :] = q
     p_out[0, :] = p
@@ -221,7 +520,7 @@ def stormer_verlet(problem, q0, p0, h, n_steps, save_every, q_out, p_out):
         for a in range(d):
             p[a] -= half * g[a]
             q[a] += h * p[a]
-        grad_v(problem, q, g)
+        grad_v(problem, q, g, prm)
         for a in range(d):
             p[a] -= half * g[a]
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
@@ -346,13 +645,31 @@ def gauss_tables(s: int) -> GaussTables:
 
 @nb.njit(cache=True)
 def gauss_collocation(
-    problem, q0, p0, h, n_steps, save_every, A2, bA, b, c, E, full, tol, maxiter, q_out, p_out, its
+    problem,
+    prm,
+    q0,
+    p0,
+    h,
+    n_steps,
+    save_every,
+    A2,
+    bA,
+    b,
+    c,
+    E,
+    mode,
+    tol,
+    maxiter,
+    q_out,
+    p_out,
+    its,
 ):
-    """s-stage Gauss collocation for H = |p|^2/2 + V(q).
+    """s-stage Gauss collocation for H = p^T M^-1 p / 2 + V(q), in (q, v = M^-1 p).
 
-    ``full``: full Newton (True) or simplified Newton with the Hessian at q_k
-    (False). Saves rows at k % save_every == 0 and the last step; ``its[k]``
-    receives the Newton iterations of step k. Returns (status, steps done, rows saved).
+    ``mode``: ``FULL_NEWTON``, ``SIMPLIFIED_NEWTON`` (Hessian at q_k, factorised
+    once per step) or ``FIXED_POINT`` (identity for the Jacobian: no Hessian, no
+    solve). Saves rows at k % save_every == 0 and the last step; ``its[k]``
+    receives the iterations of step k. Returns (status, steps done, rows saved).
     """
     d = q0.shape[0]
     s = c.shape[0]
@@ -364,10 +681,14 @@ def gauss_collocation(
     dq = np.zeros(d)
     Qi = np.zeros(d)
     g = np.zeros((s, d))
-    Hs = np.zeros((s, d, d))
-    J = np.zeros((m, m))
+    full = mode == FULL_NEWTON
+    # the Hessians and the Jacobian only where the variant needs them (d = 1000 chains)
+    nh = s if full else (1 if mode == SIMPLIFIED_NEWTON else 0)
+    mj = m if mode != FIXED_POINT else 0
+    Hs = np.zeros((nh, d, d))
+    J = np.zeros((mj, mj))
     R = np.zeros(m)
-    piv = np.zeros(m, dtype=np.int64)
+    piv = np.zeros(mj, dtype=np.int64)
     h2 = h * h
     for i in range(s):
         for a in range(d):
@@ -386,8 +707,8 @@ def gauss_collocation(
                     for j in range(s):
                         acc += E[i, j] * Zold[j, a]
                     Z[i, a] = acc - dq[a]
-        if not full:
-            grad_hess_v(problem, q, g[0], Hs[0])
+        if mode == SIMPLIFIED_NEWTON:
+            grad_hess_v(problem, q, g[0], Hs[0], prm)
             J[:, :] = 0.0
             for i in range(s):
                 for j in range(s):
@@ -408,9 +729,9 @@ def gauss_collocation(
                 for a in range(d):
                     Qi[a] = q[a] + Z[j, a]
                 if full:
-                    grad_hess_v(problem, Qi, g[j], Hs[j])
+                    grad_hess_v(problem, Qi, g[j], Hs[j], prm)
                 else:
-                    grad_v(problem, Qi, g[j])
+                    grad_v(problem, Qi, g[j], prm)
             for i in range(s):
                 for a in range(d):
                     acc = Z[i, a] - h * c[i] * p[a]
@@ -428,7 +749,8 @@ def gauss_collocation(
                         J[i * d + a, i * d + a] += 1.0
                 if not _lu_factor(J, piv):
                     return STATUS_SINGULAR, k, saved
-            _lu_solve(J, piv, R)
+            if mode != FIXED_POINT:
+                _lu_solve(J, piv, R)
             increment = 0.0
             size = 0.0
             for i in range(s):
@@ -448,7 +770,7 @@ def gauss_collocation(
         for j in range(s):
             for a in range(d):
                 Qi[a] = q[a] + Z[j, a]
-            grad_v(problem, Qi, g[j])
+            grad_v(problem, Qi, g[j], prm)
         for a in range(d):
             fq = 0.0
             fp = 0.0
@@ -506,9 +828,9 @@ def lobatto_tables(r: int) -> LobattoTables:
 
 @nb.njit(cache=True)
 def lobatto_iiia_iiib(
-    problem, q0, p0, h, n_steps, save_every, AB, b, c, E, tol, maxiter, q_out, p_out, its
+    problem, prm, q0, p0, h, n_steps, save_every, AB, b, c, E, tol, maxiter, q_out, p_out, its
 ):
-    """r-stage Lobatto IIIA–IIIB for H = |p|^2/2 + V(q), full Newton on the interior stages.
+    """r-stage Lobatto IIIA–IIIB for H = p^T M^-1 p / 2 + V(q), full Newton on the interior stages.
 
     With the momenta eliminated, the stage positions are
     Q_i = q_k + h c_i p_k - h^2 sum_j (A Abar)_ij grad V(Q_j); Q_1 = q_k and
@@ -535,7 +857,7 @@ def lobatto_iiia_iiib(
     for i in range(r):
         for a in range(d):
             Z[i, a] = c[i] * h * p[a]
-    grad_v(problem, q, g[0])
+    grad_v(problem, q, g[0], prm)
     q_out[0, :] = q
     p_out[0, :] = p
     saved = 1
@@ -558,7 +880,7 @@ def lobatto_iiia_iiib(
                 for j in range(1, r - 1):
                     for a in range(d):
                         Qi[a] = q[a] + Z[j, a]
-                    grad_hess_v(problem, Qi, g[j], Hs[j])
+                    grad_hess_v(problem, Qi, g[j], Hs[j], prm)
                 for i in range(1, r - 1):
                     for a in range(d):
                         acc = Z[i, a] - h * c[i] * p[a]
@@ -595,7 +917,7 @@ def lobatto_iiia_iiib(
             for j in range(1, r - 1):
                 for a in range(d):
                     Qi[a] = q[a] + Z[j, a]
-                grad_v(problem, Qi, g[j])
+                grad_v(problem, Qi, g[j], prm)
         its[k] = it
         for a in range(d):
             acc = h * p[a]
@@ -603,7 +925,7 @@ def lobatto_iiia_iiib(
                 acc -= h2 * AB[r - 1, j] * g[j, a]
             Z[r - 1, a] = acc
             q[a] += acc
-        grad_v(problem, q, g[r - 1])
+        grad_v(problem, q, g[r - 1], prm)
         for a in range(d):
             fp = 0.0
             for j in range(r):
@@ -647,10 +969,18 @@ def _check(status: int, done: int, name: str) -> None:
         raise RuntimeError(f"{name}: failed at step {done} (status {status})")
 
 
-def run_verlet(problem: int, q0, p0, h: float, n_steps: int, save_every: int = 1) -> KernelRun:
-    """Störmer–Verlet from (q0, p0); see :func:`stormer_verlet`."""
+def _prm(params) -> NDArray[np.float64]:
+    return _NO_PARAMS if params is None else np.ascontiguousarray(params, dtype=float)
+
+
+def run_verlet(
+    problem: int, q0, p0, h: float, n_steps: int, save_every: int = 1, params=None
+) -> KernelRun:
+    """Störmer–Verlet from (q0, v0); see :func:`stormer_verlet`."""
     q0, p0, q_out, p_out = _buffers(q0, p0, n_steps, save_every)
-    saved = stormer_verlet(problem, q0, p0, float(h), int(n_steps), int(save_every), q_out, p_out)
+    saved = stormer_verlet(
+        problem, _prm(params), q0, p0, float(h), int(n_steps), int(save_every), q_out, p_out
+    )
     return KernelRun(q_out[:saved], p_out[:saved], np.zeros(n_steps, dtype=np.int64))
 
 
@@ -662,16 +992,27 @@ def run_gauss(
     h: float,
     n_steps: int,
     save_every: int = 1,
-    full: bool = True,
+    iteration: str = "full",
     tol: float = 1e-14,
-    maxiter: int = 30,
+    maxiter: int | None = None,
+    params=None,
 ) -> KernelRun:
-    """s-stage Gauss collocation from (q0, p0); see :func:`gauss_collocation`."""
+    """s-stage Gauss collocation from (q0, v0); see :func:`gauss_collocation`.
+
+    ``iteration``: ``"full"`` (Newton), ``"simplified"`` (Newton, Hessian at q_k) or
+    ``"fixed-point"``. ``maxiter`` defaults to 30 (Newton) or 100 (fixed point).
+    """
+    if iteration not in _ITERATIONS:
+        raise ValueError(f"iteration must be one of {sorted(_ITERATIONS)}, got {iteration!r}")
+    mode = _ITERATIONS[iteration]
+    if maxiter is None:
+        maxiter = 100 if mode == FIXED_POINT else 30
     tb = gauss_tables(s)
     q0, p0, q_out, p_out = _buffers(q0, p0, n_steps, save_every)
     its = np.zeros(n_steps, dtype=np.int64)
     status, done, saved = gauss_collocation(
         problem,
+        _prm(params),
         q0,
         p0,
         float(h),
@@ -682,14 +1023,14 @@ def run_gauss(
         tb.b,
         tb.c,
         tb.E,
-        bool(full),
+        mode,
         float(tol),
         int(maxiter),
         q_out,
         p_out,
         its,
     )
-    _check(status, done, f"gauss_collocation(s={s})")
+    _check(status, done, f"gauss_collocation(s={s}, {iteration})")
     return KernelRun(q_out[:saved], p_out[:saved], its)
 
 
@@ -703,13 +1044,15 @@ def run_lobatto(
     save_every: int = 1,
     tol: float = 1e-14,
     maxiter: int = 30,
+    params=None,
 ) -> KernelRun:
-    """r-stage Lobatto IIIA–IIIB from (q0, p0); see :func:`lobatto_iiia_iiib`."""
+    """r-stage Lobatto IIIA–IIIB from (q0, v0); see :func:`lobatto_iiia_iiib`."""
     tb = lobatto_tables(r)
     q0, p0, q_out, p_out = _buffers(q0, p0, n_steps, save_every)
     its = np.zeros(n_steps, dtype=np.int64)
     status, done, saved = lobatto_iiia_iiib(
         problem,
+        _prm(params),
         q0,
         p0,
         float(h),

@@ -8,7 +8,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
-from scipy.integrate import solve_ivp
 
 from ..system import LagrangianSystem
 
@@ -69,6 +68,8 @@ def ode_reference(
     systems). An independent check on the Galerkin integrators, accurate to
     about ``1e-12`` on the library's smooth problems over short spans.
     """
+    from scipy.integrate import solve_ivp  # here: SciPy adds 35 MB to every process
+
     if not system.structure.autonomous:
         raise NotImplementedError("ode_reference supports autonomous systems only")
     n = system.n
