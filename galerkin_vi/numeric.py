@@ -69,7 +69,9 @@ class FlatEvaluator:
                 slots.append(slot)
                 parts.append(sp.Add(*terms[k : k + _SUM_CHUNK]))
         self._slots = np.array(slots, dtype=np.int64)
-        self._fn: Callable = sp.lambdify(list(args), parts, modules="numpy", cse=True)
+        # the module object, not "numpy": lambdify would run "from numpy import *", which
+        # imports all of NumPy's lazily loaded submodules (0.15 s)
+        self._fn: Callable = sp.lambdify(list(args), parts, modules=[np], cse=True)
 
     def __call__(self, *values: NDArray | float) -> NDArray[np.float64]:
         shape = np.broadcast_shapes(*(np.shape(x) for x in values))
