@@ -1,23 +1,27 @@
-"""The ``galerkin-vi`` command line."""
+"""The ``galerkin-vi`` command line and the order-verification report behind it."""
 
 from __future__ import annotations
 
+import json
+import textwrap
+
 import pytest
 
-from galerkin_vi import cli
+from galerkin_vi import cli, report
 
 
 def test_verify_prints_the_order_table_and_passes(capsys):
     status = cli.main(["verify", "--problems", "harmonic_oscillator", "--degrees", "1", "2"])
     out = capsys.readouterr().out
     assert status == 0
-    assert "predicted" in out and "measured" in out
+    for column in ("predicted", "measured", "max energy err", "max momentum drift", "verdict"):
+        assert column in out
     assert out.count("pass") == 4  # 2 degrees x 2 families
-    assert "0 of 4 measured orders miss" in out
+    assert "0 of 4 studies fail" in out
 
 
 def test_verify_exit_status_is_nonzero_when_an_order_misses(capsys, monkeypatch):
-    monkeypatch.setattr(cli, "ORDER_TOLERANCE", -1.0)  # nothing can pass
+    monkeypatch.setattr(report, "ORDER_TOLERANCE", -1.0)  # nothing can pass
     status = cli.main(["verify", "--problems", "pendulum", "--degrees", "1", "--families", "gauss"])
     assert status == 1
     assert "FAIL" in capsys.readouterr().out
@@ -26,3 +30,79 @@ def test_verify_exit_status_is_nonzero_when_an_order_misses(capsys, monkeypatch)
 def test_verify_rejects_unknown_problem():
     with pytest.raises(SystemExit):
         cli.main(["verify", "--problems", "no_such_problem"])
+
+
+def test_verify_writes_json_and_convergence_plots(tmp_path, capsys):
+    out_dir = tmp_path / "out"
+    status = cli.main(
+        [
+            "verify",
+            "--problems",
+            "kepler",
+            "--degrees",
+            "1",
+            "--families",
+            "gauss",
+            "--output",
+            str(out_dir),
+        ]
+    )
+    assert status == 0
+    data = json.loads((out_dir / "verify.json").read_text())
+    (row,) = data["rows"]
+    assert row["problem"] == "kepler" and row["predicted"] == 2
+    assert abs(row["measured"] - 2.0) <= report.ORDER_TOLERANCE
+    # the rotation's momentum map is conserved to round-off (discrete Noether)
+    assert row["max_momentum_drift"] <= 1e-12
+    assert len(row["errors"]) == len(row["step_sizes"]) == len(row["fitted"])
+    png = (out_dir / "kepler_convergence.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    assert f"wrote {out_dir / 'kepler_convergence.png'}" in capsys.readouterr().out
+
+
+def test_verify_runs_a_users_problem(tmp_path, monkeypatch, capsys):
+    (tmp_path / "my_models.py").write_text(
+        textwrap.dedent(
+            """
+            import numpy as np
+            import sympy as sp
+            import galerkin_vi as gvi
+            from galerkin_vi.problems import Problem
+
+            q, v = sp.symbols("q v")
+            SYSTEM = gvi.LagrangianSystem(v**2 / 2 - q**4 / 4, [q], [v])
+
+            def quartic():
+                return Problem("quartic", SYSTEM, np.array([1.0]), np.array([0.0]), 2.0)
+            """
+        )
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    status = cli.main(["verify", "--problems", "--problem", "my_models:quartic", "--degrees", "2"])
+    out = capsys.readouterr().out
+    assert status == 0
+    assert out.count("quartic") == 2 and out.count("pass") == 2
+
+
+@pytest.mark.parametrize(
+    ("spec", "message"),
+    [
+        ("no_colon", "module:attribute"),
+        ("no_such_module_xyz:thing", "cannot import"),
+        ("galerkin_vi.problems:no_such_thing", "no attribute"),
+        ("galerkin_vi:__version__", "must be a galerkin_vi.problems.Problem"),
+    ],
+)
+def test_verify_reports_a_bad_user_problem(spec, message, capsys):
+    assert cli.main(["verify", "--problems", "--problem", spec]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_a_bare_system_is_rejected_with_a_hint(tmp_path, monkeypatch):
+    (tmp_path / "bare_models.py").write_text(
+        "import sympy as sp\nimport galerkin_vi as gvi\nq, v = sp.symbols('q v')\n"
+        "SYSTEM = gvi.LagrangianSystem(v**2 / 2 - q**2 / 2, [q], [v])\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(ValueError, match="without initial data"):
+        report.load_problem("bare_models:SYSTEM")

@@ -1,0 +1,326 @@
+r"""The order-verification report: ``galerkin-vi verify`` as a library.
+
+For each problem, degree :math:`s` and quadrature family the report
+
+1. measures the convergence order of the final (or maximal) position error
+   with :func:`~galerkin_vi.verification.measure_order` and compares it with
+   the prediction :math:`\min(2s, \text{quadrature order})`;
+2. runs the method once more at the finest step of the order study and records
+   the largest energy error :math:`\max_k |H_k - H_0| / \max(1, |H_0|)` and the
+   largest drift of the momentum maps of the problem's symmetries,
+   :math:`\max_k |J_k - J_0| / \max(1, |J_0|)`, which discrete Noether keeps at
+   solver tolerance.
+
+A row passes when the measured order is within :data:`ORDER_TOLERANCE` of the
+prediction (fitted on at least three runs) and every momentum drift is below
+:data:`MOMENTUM_TOLERANCE`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import math
+import warnings
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import problems
+from .errors import OrderReductionWarning
+from .integrator import Integrator
+from .method import Galerkin
+from .quadrature import gauss_legendre, gauss_lobatto
+from .system import LagrangianSystem
+from .verification import OrderResult, measure_order
+
+__all__ = [
+    "FAMILIES",
+    "MOMENTUM_TOLERANCE",
+    "ORDER_TOLERANCE",
+    "PROBLEMS",
+    "VerificationRow",
+    "format_table",
+    "load_problem",
+    "verify",
+    "write_outputs",
+]
+
+ORDER_TOLERANCE = 0.3
+MOMENTUM_TOLERANCE = 1e-10
+# Degrees above FLOAT64_MAX_DEGREE are measured in mpmath: in float64 their errors above the
+# round-off floor are still pre-asymptotic (see tests/test_order.py).
+FLOAT64_MAX_DEGREE = 3
+MP_DIGITS = 40
+
+
+@dataclass(frozen=True)
+class ProblemEntry:
+    """A library problem as the report runs it: factory and mpmath step counts."""
+
+    factory: Callable[[], problems.Problem]
+    mp_step_counts: tuple[int, ...]
+
+
+PROBLEMS: dict[str, ProblemEntry] = {
+    "harmonic_oscillator": ProblemEntry(lambda: problems.harmonic_oscillator(1.3), (8, 16, 32)),
+    "pendulum": ProblemEntry(problems.pendulum, (8, 16, 32)),
+    "kepler": ProblemEntry(lambda: problems.kepler(0.5), (32, 64, 128)),
+    "double_pendulum": ProblemEntry(problems.double_pendulum, (32, 64, 128)),
+    "henon_heiles": ProblemEntry(lambda: problems.henon_heiles(t_final=2.0), (8, 16, 32)),
+    "spherical_pendulum": ProblemEntry(
+        lambda: problems.spherical_pendulum(t_final=2.0), (8, 16, 32)
+    ),
+}
+FAMILIES = {
+    "lobatto": lambda s: gauss_lobatto(s + 1),
+    "gauss": gauss_legendre,
+}
+
+
+@dataclass(frozen=True)
+class VerificationRow:
+    """One line of the report (all numbers plain Python, ready for JSON)."""
+
+    problem: str
+    degree: int
+    quadrature: str
+    predicted: int
+    measured: float
+    points_fitted: int
+    finest_error: float
+    max_energy_error: float
+    max_momentum_drift: float | None
+    passed: bool
+    precision: str
+    step_counts: list[int] = field(default_factory=list)
+    step_sizes: list[float] = field(default_factory=list)
+    errors: list[float] = field(default_factory=list)
+    fitted: list[bool] = field(default_factory=list)
+
+
+def load_problem(spec: str) -> problems.Problem:
+    """A user's problem from ``"module:attribute"``.
+
+    The attribute may be a :class:`~galerkin_vi.problems.Problem` or a callable
+    returning one. A bare :class:`LagrangianSystem` has no initial data, so it is
+    rejected with a hint.
+    """
+    module_name, sep, attribute = spec.partition(":")
+    if not sep or not module_name or not attribute:
+        raise ValueError(f"--problem expects 'module:attribute', got {spec!r}")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise ValueError(f"--problem {spec}: cannot import module {module_name!r}: {exc}") from exc
+    try:
+        obj = getattr(module, attribute)
+    except AttributeError as exc:
+        raise ValueError(f"--problem {spec}: {module_name} has no attribute {attribute!r}") from exc
+    if callable(obj) and not isinstance(obj, problems.Problem | LagrangianSystem):
+        obj = obj()
+    if isinstance(obj, LagrangianSystem):
+        raise ValueError(
+            f"--problem {spec} is a LagrangianSystem without initial data: wrap it in "
+            "galerkin_vi.problems.Problem(name, system, q0, v0, t_final) (or a function "
+            "returning one)"
+        )
+    if not isinstance(obj, problems.Problem):
+        raise ValueError(
+            f"--problem {spec} must be a galerkin_vi.problems.Problem or a callable returning "
+            f"one, got {type(obj).__name__}"
+        )
+    return obj
+
+
+def _order_study(
+    problem: problems.Problem,
+    method: Galerkin,
+    mp_step_counts: Sequence[int],
+    step_counts: Sequence[int] | None,
+    integrator: Integrator,
+) -> tuple[OrderResult, str]:
+    common = {"t_final": problem.t_final, "params": problem.params}
+    if method.degree > FLOAT64_MAX_DEGREE:
+        result = measure_order(
+            problem.system,
+            method,
+            problem.q0,
+            problem.v0,
+            step_counts=list(step_counts or mp_step_counts),
+            dps=MP_DIGITS,
+            **common,
+        )
+        return result, f"mpmath {MP_DIGITS} digits"
+    autonomous = problem.system.structure.autonomous
+    if problem.exact is None and not autonomous:
+        # no trusted ODE reference: Richardson extrapolation of the method itself
+        result = measure_order(
+            problem.system,
+            method,
+            problem.q0,
+            problem.v0,
+            step_counts=list(step_counts or (16, 32, 64)),
+            integrator=integrator,
+            **common,
+        )
+        return result, "float64, Richardson reference"
+    result = measure_order(
+        problem.system,
+        method,
+        problem.q0,
+        problem.v0,
+        step_counts=list(step_counts) if step_counts else "auto",
+        reference=problem.reference,
+        norm="max",
+        window=(1e-12 if problem.exact is not None else 1e-10, 1e-4),
+        integrator=integrator,
+        **common,
+    )
+    return result, "float64"
+
+
+def _invariants(
+    problem: problems.Problem, integrator: Integrator, n_steps: int
+) -> tuple[float, float | None]:
+    """Largest relative energy error and momentum-map drift at ``n_steps`` steps."""
+    traj = integrator.integrate(
+        problem.q0,
+        problem.v0,
+        h=problem.t_final / n_steps,
+        n_steps=n_steps,
+        params=problem.params,
+    )
+    energy = traj.energy()
+    energy_error = float(np.max(np.abs(energy - energy[0])) / max(1.0, abs(energy[0])))
+    drifts = []
+    for xi in problem.symmetries.values():
+        J = traj.momentum(xi)
+        drifts.append(float(np.max(np.abs(J - J[0])) / max(1.0, abs(J[0]))))
+    return energy_error, (max(drifts) if drifts else None)
+
+
+def verify(
+    selected: Iterable[tuple[str, problems.Problem, Sequence[int]]],
+    degrees: Sequence[int],
+    families: Sequence[str],
+    step_counts: Sequence[int] | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> list[VerificationRow]:
+    """Run the order study of every (problem, degree, family).
+
+    Parameters
+    ----------
+    selected : iterable of (name, Problem, mpmath step counts)
+    degrees : sequence of int
+    families : sequence of {"lobatto", "gauss"}
+        Lobatto with :math:`s + 1` points or Gauss with :math:`s` points.
+    step_counts : sequence of int, optional
+        Fixed step counts instead of the automatic choice (float64) or the
+        problem's mpmath step counts.
+    progress : callable, optional
+        Called with a short label before each study (progress bars).
+    """
+    rows = []
+    for name, problem, mp_counts in selected:
+        for s in degrees:
+            for family in families:
+                if progress is not None:
+                    progress(f"{name} s={s} {family}")
+                rule = FAMILIES[family](s)
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", OrderReductionWarning)
+                    method = Galerkin(s, rule)
+                integrator = Integrator(problem.system, method)
+                result, precision = _order_study(
+                    problem, method, mp_counts, step_counts, integrator
+                )
+                fitted = int(result.mask.sum())
+                finest_index = int(np.max(np.nonzero(result.mask)[0])) if fitted else -1
+                n_finest = int(result.step_counts[finest_index])
+                energy_error, drift = _invariants(problem, integrator, n_finest)
+                ok_order = fitted >= 3 and abs(result.order - method.order) <= ORDER_TOLERANCE
+                ok_momentum = drift is None or drift <= MOMENTUM_TOLERANCE
+                rows.append(
+                    VerificationRow(
+                        problem=name,
+                        degree=s,
+                        quadrature=repr(rule),
+                        predicted=int(method.order),
+                        measured=float(result.order),
+                        points_fitted=fitted,
+                        finest_error=float(result.errors[finest_index]) if fitted else math.nan,
+                        max_energy_error=energy_error,
+                        max_momentum_drift=drift,
+                        passed=bool(ok_order and ok_momentum),
+                        precision=precision,
+                        step_counts=[int(n) for n in result.step_counts],
+                        step_sizes=[float(h) for h in result.step_sizes],
+                        errors=[float(e) for e in result.errors],
+                        fitted=[bool(m) for m in result.mask],
+                    )
+                )
+    return rows
+
+
+def format_table(rows: Sequence[VerificationRow]) -> str:
+    """The report as a fixed-width text table."""
+    header = (
+        f"{'problem':<20} {'s':>2} {'quadrature':<18} {'predicted':>9} {'measured':>9} "
+        f"{'max energy err':>14} {'max momentum drift':>18} {'verdict':>7}"
+    )
+    lines = [header, "-" * len(header)]
+    for r in rows:
+        drift = "—" if r.max_momentum_drift is None else f"{r.max_momentum_drift:.1e}"
+        lines.append(
+            f"{r.problem:<20} {r.degree:>2} {r.quadrature:<18} {r.predicted:>9d} "
+            f"{r.measured:>9.2f} {r.max_energy_error:>14.1e} {drift:>18} "
+            f"{'pass' if r.passed else 'FAIL':>7}"
+        )
+    return "\n".join(lines)
+
+
+def write_outputs(rows: Sequence[VerificationRow], folder: str | Path) -> list[Path]:
+    """Write ``verify.json`` and one convergence plot per problem into ``folder``.
+
+    Each plot shows the error against :math:`h` on log–log axes for every
+    method of the problem, the fitted points filled, with the predicted slope
+    drawn through the finest fitted point. Returns the paths written.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = [folder / "verify.json"]
+    payload = {
+        "order_tolerance": ORDER_TOLERANCE,
+        "momentum_tolerance": MOMENTUM_TOLERANCE,
+        "rows": [asdict(r) for r in rows],
+    }
+    written[0].write_text(json.dumps(payload, indent=1, allow_nan=True))
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    for name in dict.fromkeys(r.problem for r in rows):
+        fig, ax = plt.subplots(figsize=(6.4, 4.8))
+        for r in (r for r in rows if r.problem == name):
+            h, e, used = np.array(r.step_sizes), np.array(r.errors), np.array(r.fitted)
+            label = f"s={r.degree} {r.quadrature}: {r.measured:.2f} (pred. {r.predicted})"
+            (line,) = ax.loglog(h, e, "o-", mfc="none", label=label)
+            ax.loglog(h[used], e[used], "o", color=line.get_color())
+            if used.any():
+                h0, e0 = h[used].min(), e[used][np.argmin(h[used])]
+                slope_h = np.array([h0, h[used].max()])
+                ax.loglog(slope_h, e0 * (slope_h / h0) ** r.predicted, ":", color="k", lw=0.8)
+        ax.set_xlabel("step size h")
+        ax.set_ylabel("position error")
+        ax.set_title(f"{name}: measured order (dotted: predicted slope)")
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        path = folder / f"{name}_convergence.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        written.append(path)
+    return written
