@@ -6,6 +6,9 @@ notes: a relative increment tolerance alone cannot be met once
 is a few ulps leaves a systematic energy drift over long runs. So, once the
 increment :math:`\|\Delta X\|_\infty` is below :math:`\mathrm{tol}\,(1+\|X\|_\infty)`,
 the iteration goes on until the increment is exactly zero or stops decreasing.
+An increment that stops decreasing above the tolerance but within ``STAGNATION``
+times it is the round-off floor :math:`\kappa(K)\,\varepsilon` of an
+ill-conditioned step and is accepted too.
 
 Everything from the ``# ---- kernel ----`` marker on is plain, allocation-free
 Python that the compiled backend copies into each generated module and jits;
@@ -35,6 +38,9 @@ __all__ = [
 ]
 
 # ---- kernel ----
+# an increment that stops decreasing within this factor of the tolerance is at the
+# round-off floor of the solve and accepted
+STAGNATION = 100.0
 CONTINUE = 0
 CONVERGED = 1
 DIVERGED = 2
@@ -57,6 +63,10 @@ def newton_status(increment, previous, scale, tol, iteration, maxiter):
         if iteration >= maxiter:
             return CONVERGED
         return CONTINUE
+    if iteration >= 3 and previous <= increment <= STAGNATION * tol * scale:
+        # stopped decreasing just above tol: the round-off floor kappa(K) eps of an
+        # ill-conditioned step (close encounters), not a failure to converge
+        return CONVERGED
     if iteration >= maxiter:
         return NOT_CONVERGED
     if iteration >= 3 and increment > 2.0 * previous:

@@ -344,10 +344,13 @@ class MomentumMap:
     _evaluate: Callable
     _params: NDArray
 
-    def __call__(self, q: ArrayLike, p: ArrayLike) -> NDArray:
+    def __call__(self, q: ArrayLike, p: ArrayLike, params: ArrayLike | None = None) -> NDArray:
+        """Evaluate at rows of ``q`` and ``p``; ``params`` (a parameter vector in
+        declaration order) overrides the system's defaults in the generator."""
         q = np.asarray(q, dtype=float)
         p = np.asarray(p, dtype=float)
-        generator = self._evaluate(*np.moveaxis(q, -1, 0), *self._params)
+        values = self._params if params is None else np.asarray(params, dtype=float)
+        generator = self._evaluate(*np.moveaxis(q, -1, 0), *values)
         return np.sum(p * generator, axis=-1)
 
 

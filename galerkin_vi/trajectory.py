@@ -73,4 +73,4 @@ class Trajectory:
 
     def momentum(self, xi: Sequence[sp.Expr]) -> NDArray[np.float64]:
         r"""Momentum map :math:`\langle p_k, \xi_Q(q_k)\rangle` of the generator ``xi``."""
-        return self.system.momentum_map(xi)(self.q, self.p)
+        return self.system.momentum_map(xi)(self.q, self.p, self.params)

@@ -552,3 +552,13 @@ def test_inverse_legendre_outside_the_range_is_a_clear_error():
     np.testing.assert_allclose(system.inverse_legendre([0.0], [0.5]), [np.arctanh(0.5)], atol=1e-14)
     with pytest.raises(ValueError, match="range of the Legendre transform"):
         system.inverse_legendre([0.0], [2.0])
+
+
+def test_trajectory_momentum_uses_the_runs_parameters():
+    # a generator that depends on a parameter: J = <p, (a, 0)> = a p_x
+    x, y, vx, vy, a = sp.symbols("x y vx vy a")
+    system = gvi.LagrangianSystem((vx**2 + vy**2) / 2 - y**2 / 2, [x, y], [vx, vy], params={a: 1.0})
+    traj = gvi.Integrator(system, backend="numpy").integrate(
+        [0.0, 1.0], [0.5, 0.0], h=0.1, n_steps=3, params={a: 3.0}
+    )
+    np.testing.assert_allclose(traj.momentum([a, 0]), 3.0 * traj.p[:, 0], rtol=1e-15)
