@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .choice import MethodChoice, choose_method
 from .errors import (
     ConditioningWarning,
     ConvergenceError,
@@ -22,10 +23,12 @@ __all__ = [
     "Galerkin",
     "Integrator",
     "LagrangianSystem",
+    "MethodChoice",
     "OrderReductionWarning",
     "OrderResult",
     "QuadratureRule",
     "Trajectory",
+    "choose_method",
     "gauss_legendre",
     "gauss_lobatto",
     "measure_order",

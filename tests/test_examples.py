@@ -17,7 +17,7 @@ RUNS = {
     "kepler.py": (["--periods", "5"], "precession/T"),
     "double_pendulum.py": (["--steps", "2000", "--reverse-time", "2"], "back to start"),
     "outer_solar_system.py": (["--days", "20000"], "final Pluto position"),
-    "choose_order.py": ([], ""),
+    "choose_order.py": ([], "MethodChoice"),
 }
 
 
