@@ -130,10 +130,9 @@ def assert_order(
     ValueError
         If ``tolerance``, ``predicted`` or ``min_points`` are out of range, or
         fewer than ``min_points`` step counts are given.
-
-    Errors of the runs themselves (:class:`~galerkin_vi.ConvergenceError`, or
-    ``RuntimeError`` when ``step_counts="auto"`` finds no runs in its window)
-    propagate unchanged.
+    ConvergenceError
+        From a run of the study, unchanged (as is the ``RuntimeError`` of
+        ``step_counts="auto"`` when it finds no runs in its window).
 
     Examples
     --------
