@@ -8,6 +8,7 @@ beside each tolerance.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -16,7 +17,9 @@ import pytest
 
 import galerkin_vi as gvi
 from galerkin_vi import bench, problems
+from galerkin_vi.bench import cases
 from galerkin_vi.bench import handwritten as hw
+from galerkin_vi.bench import workprecision as wp
 from galerkin_vi.bench.workprecision import time_to_error
 
 
@@ -44,7 +47,8 @@ def test_stormer_verlet_equals_galerkin_s1_lobatto2(kepler):
 def test_gauss_collocation_equals_galerkin_gauss(kepler, s):
     traj = _gvi(kepler, gvi.Galerkin(s, gvi.gauss_legendre(s)), 0.05, 100)
     for full in (True, False):
-        run = hw.run_gauss(hw.KEPLER, s, kepler.q0, kepler.v0, 0.05, 100, full=full)
+        iteration = "full" if full else "simplified"
+        run = hw.run_gauss(hw.KEPLER, s, kepler.q0, kepler.v0, 0.05, 100, iteration=iteration)
         # measured 9e-15 / 3.6e-14 / 7.0e-14 for s = 1 / 2 / 3
         np.testing.assert_allclose(run.q, traj.q, rtol=0, atol=2e-13)
         np.testing.assert_allclose(run.p, traj.p, rtol=0, atol=2e-13)
@@ -64,7 +68,7 @@ def test_pendulum_kernels_match_galerkin():
     traj = _gvi(problem, gvi.Galerkin(2, gvi.gauss_legendre(2)), 0.1, 100)
     run = hw.run_gauss(hw.PENDULUM, 2, problem.q0, problem.v0, 0.1, 100)
     np.testing.assert_allclose(run.q, traj.q, rtol=0, atol=2e-13)
-    energy = hw.energy(hw.PENDULUM, run.q, run.p)
+    energy = hw.energy(hw.PENDULUM, run.q, run.p, np.zeros(0))
     np.testing.assert_allclose(energy, traj.energy(), rtol=0, atol=1e-14)
 
 
@@ -78,17 +82,145 @@ def test_gauss_tables_are_the_gauss_method():
         np.testing.assert_allclose(tb.bA, tb.b * (1 - tb.c), atol=1e-15)  # condition D(1)
 
 
-def test_scipy_rhs_and_jacobians_are_consistent():
-    y = np.array([0.7, -0.4, 0.3, 1.1])
-    eps = 1e-6
-    for rhs, jac, yy in (
-        (hw.kepler_rhs, hw.kepler_jac, y),
-        (hw.pendulum_rhs, hw.pendulum_jac, y[:2]),
-    ):
-        numeric = np.column_stack(
-            [(rhs(0.0, yy + eps * e) - rhs(0.0, yy - eps * e)) / (2 * eps) for e in np.eye(yy.size)]
-        )
-        np.testing.assert_allclose(jac(0.0, yy), numeric, atol=1e-8)
+# -------------------------------------------------- the problems added for issue 3, item 4
+def _twin_cases():
+    """(name, problem, hand-written id, its parameters, step) for the new separable problems."""
+    data = problems.gravitation._outer_solar_system_data()
+    return {
+        "henon_heiles": (problems.henon_heiles(), hw.HENON_HEILES, np.zeros(0), 0.1),
+        "fpu": (
+            problems.fermi_pasta_ulam(),
+            hw.SPRINGS,
+            hw.springs_params(0.0, 4.0, 50.0**2 / 2, 0.0),
+            0.005,
+        ),
+        "spring_chain": (
+            cases.chain_problem(10),
+            hw.SPRINGS,
+            hw.springs_params(1.0, cases.CHAIN_BETA, 1.0, cases.CHAIN_BETA, 1.0),
+            0.1,
+        ),
+        "spring_chain_mass_2": (
+            problems.spring_chain(10, stiffness=1.5, beta=0.5, mass=2.0),
+            hw.SPRINGS,
+            hw.springs_params(1.5, 0.5, 1.5, 0.5, 2.0),
+            0.1,
+        ),
+        "outer_solar_system": (
+            problems.outer_solar_system(),
+            hw.N_BODY,
+            hw.n_body_params(data["G"], data["masses"]),
+            50.0,
+        ),
+    }
+
+
+TWINS = list(_twin_cases())
+
+
+def _close(run, traj, inv_mass, rel):
+    """q and v agree to ``rel`` relative to the largest |q| and |v| (round-off)."""
+    qs, vs = max(1.0, np.abs(traj.q).max()), np.abs(traj.p * inv_mass).max()
+    np.testing.assert_allclose(run.q, traj.q, rtol=0, atol=rel * qs)
+    np.testing.assert_allclose(run.p, traj.p * inv_mass, rtol=0, atol=rel * vs)
+
+
+@pytest.mark.parametrize("name", TWINS)
+def test_new_kernels_equal_their_galerkin_twins(name):
+    """Each new problem's hand-written ∇V, ∇²V: every kernel is its galerkin_vi twin (50 steps)."""
+    problem, pid, prm, h = _twin_cases()[name]
+    n = problem.q0.size
+    inv_mass = np.array([hw._inverse_mass(pid, a, prm) for a in range(n)])
+
+    def twin(method):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", gvi.OrderReductionWarning)
+            integ = gvi.Integrator(problem.system, method)
+        return integ.integrate(problem.q0, problem.v0, h=h, n_steps=50, params=problem.params)
+
+    q0, v0 = problem.q0, problem.v0
+    traj = twin(gvi.Galerkin(1, gvi.gauss_lobatto(2)))
+    # measured up to 2e-15 relative (solar system: 4e-16 of |q| = 40 AU)
+    _close(hw.run_verlet(pid, q0, v0, h, 50, params=prm), traj, inv_mass, 1e-13)
+    traj = twin(gvi.Galerkin(2, gvi.gauss_legendre(2)))
+    for iteration in ("full", "simplified", "fixed-point"):
+        run = hw.run_gauss(pid, 2, q0, v0, h, 50, iteration=iteration, params=prm)
+        _close(run, traj, inv_mass, 1e-13)  # measured up to 1.5e-14 (FPU velocities)
+    traj = twin(gvi.Galerkin(2, gvi.gauss_lobatto(3)))
+    _close(hw.run_lobatto(pid, 3, q0, v0, h, 50, params=prm), traj, inv_mass, 1e-13)
+    # the energy formula is galerkin_vi's Hamiltonian
+    np.testing.assert_allclose(
+        hw.energy(pid, traj.q, traj.p * inv_mass, prm),
+        traj.energy(),
+        rtol=1e-13,
+        atol=1e-15 * abs(traj.energy()[0]),
+    )
+
+
+def _rhs_cases():
+    prob = problems.double_pendulum(m1=1.3, m2=0.7, l1=0.9, l2=1.2)
+    dp = np.array([prob.params[p] for p in prob.system.params])
+    out = {name: (c[0], c[1], c[2]) for name, c in _twin_cases().items()}
+    out["kepler"] = (problems.kepler(0.6), hw.KEPLER, np.zeros(0))
+    out["pendulum"] = (problems.pendulum(), hw.PENDULUM, np.zeros(0))
+    out["double_pendulum"] = (prob, hw.DOUBLE_PENDULUM, dp)
+    return out
+
+
+@pytest.mark.parametrize("name", list(_rhs_cases()))
+def test_scipy_rhs_and_jacobians_are_consistent(name):
+    """rhs = the Euler–Lagrange accelerations of the library's system; jac = its derivative."""
+    problem, pid, prm = _rhs_cases()[name]
+    n = problem.q0.size
+    rng = np.random.default_rng(1)
+    q = problem.q0 + 0.01 * rng.standard_normal(n)
+    v = problem.v0 + 0.01 * rng.standard_normal(n) * max(1e-3, np.abs(problem.v0).max())
+    y = np.concatenate([q, v])
+    system = problem.system
+    values = system.evaluate("hessian", 0.0, q, v, system.parameter_vector(problem.params))
+    Lq = values[:n]
+    Lqv = values[2 * n + n * n : 2 * n + 2 * n * n].reshape(n, n)
+    Lvv = values[2 * n + 2 * n * n :].reshape(n, n)
+    acc = np.linalg.solve(Lvv, Lq - Lqv.T @ v)
+    f = hw.rhs(pid, y, prm)
+    np.testing.assert_allclose(f[:n], v, rtol=0, atol=0)
+    np.testing.assert_allclose(f[n:], acc, rtol=1e-12, atol=1e-13 * np.abs(acc).max())
+    eps = 1e-6 * (1 + np.abs(y))
+    numeric = np.column_stack(
+        [
+            (hw.rhs(pid, y + eps[i] * e, prm) - hw.rhs(pid, y - eps[i] * e, prm)) / (2 * eps[i])
+            for i, e in enumerate(np.eye(y.size))
+        ]
+    )
+    J = hw.jac(pid, y, prm)
+    np.testing.assert_allclose(J, numeric, rtol=0, atol=1e-7 * max(1.0, np.abs(J).max()))
+
+
+def test_double_pendulum_energy_is_the_hamiltonian():
+    problem = problems.double_pendulum(m1=1.3, m2=0.7, l1=0.9, l2=1.2)
+    prm = np.array([problem.params[p] for p in problem.system.params])
+    traj = gvi.Integrator(problem.system, gvi.Galerkin(2)).integrate(
+        problem.q0, problem.v0, h=0.1, n_steps=20, params=problem.params
+    )
+    energy = hw.energy(hw.DOUBLE_PENDULUM, traj.q, traj.velocities(), prm)
+    np.testing.assert_allclose(energy, traj.energy(), rtol=1e-13, atol=1e-14)
+
+
+def test_rebound_setup_is_the_solar_system():
+    """REBOUND's IAS15 on the benchmark's particles follows the hand-written 6-stage Gauss."""
+    pytest.importorskip("rebound")
+    setup = cases.solar_rebound_setup()
+    data = problems.gravitation._outer_solar_system_data()
+    prm = hw.n_body_params(data["G"], data["masses"])
+    problem = problems.outer_solar_system()
+    sim = setup.simulation()
+    sim.integrator = "ias15"
+    sim.integrate(5000.0, exact_finish_time=1)
+    q, v = setup.state(sim)
+    run = hw.run_gauss(hw.N_BODY, 6, problem.q0, problem.v0, 50.0, 100, 100, params=prm)
+    # measured 1.0e-15 (positions) and 2.7e-15 (velocities), relative
+    assert np.linalg.norm(q - run.q[-1]) / np.linalg.norm(q) < 1e-12
+    assert np.linalg.norm(v - run.p[-1]) / np.linalg.norm(v) < 1e-12
 
 
 def test_time_to_error_interpolates_log_log():
@@ -111,9 +243,50 @@ def test_run_tiny_configuration_returns_expected_keys(tmp_path):
             assert p["time"] > 0 and p["error"] >= 0
     row = results["per_step"][0]
     assert row["ratio"] > 0 and row["gvi_ns_per_step"] > 0
-    names = sorted(p.rsplit("/", 1)[-1] for p in results["files"])
-    assert names[:2] == ["results.json", "results.md"]
+    names = {p.rsplit("/", 1)[-1] for p in results["files"]}
+    assert {"results.json", "results.md"} <= names
     assert (tmp_path / "results.md").read_text().startswith("# galerkin_vi benchmark")
+
+
+def test_run_tiny_configuration_on_new_problems(tmp_path):
+    """A separable and a non-separable new problem: hand-written peers only where they apply."""
+    cfg = dataclasses.replace(
+        bench.tiny_config(),
+        problems=("henon_heiles", "double_pendulum"),
+        peers=("numbalsoda",),
+        per_step_problems=(),
+    )
+    results = bench.run(quick=True, output=str(tmp_path), config=cfg, verbose=False)
+    hh = results["problems"]["henon_heiles"]
+    dp = results["problems"]["double_pendulum"]
+    families = {c["family"] for c in hh["curves"].values()}
+    assert {"galerkin_vi", "hand-written", "scipy"} <= families
+    assert "hand-written" not in {c["family"] for c in dp["curves"].values()}
+    for entry in (hh, dp):
+        # the reference (DOP853 at scipy's floor) agrees with galerkin_vi's s = 6 run
+        checks = entry["reference_checks"]
+        assert any(k.startswith("gvi_s6") for k in checks)
+        assert max(checks.values()) < 1e-9
+        for curve in entry["curves"].values():
+            assert curve["points"]
+    text = (tmp_path / "results.md").read_text()
+    assert "## Summary" in text and "Hénon–Heiles" in text and "Double pendulum" in text
+
+
+def test_tolerance_sweeps_end_at_the_floor():
+    assert wp._rtols(1e-3, 3e-14, 10.0)[-2:] == [1e-13, 3e-14]
+    assert wp._rtols(1e-3, 1e-6, 10.0) == [1e-3, 1e-4, 1e-5, 1e-6]
+    assert wp._step_counts(50, 2.0)[:3] == [50, 100, 200]
+
+
+def test_chain_cost_rows_and_growth():
+    rows = wp.chain_cost((10,), target_time=0.002, repeats=1, log=lambda _: None)
+    (row,) = rows
+    assert row["n_masses"] == 10 and row["gvi_ns_per_step"] > 0 and row["n_steps"] >= 50
+    assert row["hw_gauss2_fixed_point_ns_per_step"] > 0
+    fake = [{"n_masses": 100, "gvi_ns_per_step": 2.0}, {"n_masses": 1000, "gvi_ns_per_step": 24.0}]
+    assert wp.chain_growth(fake) == 12.0
+    assert wp.chain_growth(fake[:1]) is None
 
 
 def test_cli_arguments_parse():
@@ -122,3 +295,11 @@ def test_cli_arguments_parse():
     parser = bench.add_arguments(argparse.ArgumentParser())
     args = parser.parse_args(["--quick", "--output", "out"])
     assert args.quick and args.output == "out" and args.run is bench.main
+    args = parser.parse_args(["--problems", "outer_solar_system", "fpu", "--no-chain-cost"])
+    assert args.problems == ["outer_solar_system", "fpu"] and args.no_chain_cost
+
+
+def test_problem_lists_agree():
+    assert bench.PROBLEMS == cases.PROBLEMS == wp.PROBLEMS
+    assert set(bench.quick_config().problems) < set(cases.PROBLEMS)
+    assert bench.full_config().problems == wp.PROBLEMS

@@ -1,4 +1,4 @@
-"""Benchmark suite: galerkin_vi against hand-written numba kernels and scipy's solve_ivp.
+"""Benchmark suite: galerkin_vi against hand-written numba kernels, scipy, numbalsoda and REBOUND.
 
 Entry points
 ------------
@@ -25,6 +25,7 @@ if TYPE_CHECKING:
     from .workprecision import BenchConfig
 
 __all__ = [
+    "PROBLEMS",
     "BenchConfig",
     "add_arguments",
     "full_config",
@@ -35,6 +36,19 @@ __all__ = [
 ]
 
 DEFAULT_OUTPUT = "bench-results"
+
+#: the benchmark problems (the same tuple as ``workprecision.PROBLEMS``, kept here so that the
+#: command line can offer them without importing numba)
+PROBLEMS = (
+    "pendulum",
+    "kepler",
+    "outer_solar_system",
+    "henon_heiles",
+    "double_pendulum",
+    "fpu",
+    "spring_chain_100",
+    "spring_chain_1000",
+)
 
 # numba, scipy and mpmath load only when a benchmark runs, so that wiring the sub-command into
 # the CLI (add_arguments) costs nothing at start-up.
@@ -55,6 +69,7 @@ def run(
     *,
     config: BenchConfig | None = None,
     problems: tuple[str, ...] | None = None,
+    chain_cost: bool = True,
     verbose: bool = True,
 ) -> dict:
     """Run the benchmark and return its results.
@@ -69,7 +84,10 @@ def run(
     config : BenchConfig, optional
         Overrides the configuration chosen by ``quick``.
     problems : tuple of str, optional
-        Subset of ``("pendulum", "kepler")``.
+        Subset of :data:`PROBLEMS` (default: the configuration's; the quick one leaves
+        out ``spring_chain_1000``).
+    chain_cost : bool
+        Whether to measure the spring chain's cost per step against N.
     verbose : bool
         Print progress.
 
@@ -78,13 +96,15 @@ def run(
     dict
         ``{"meta": ..., "problems": {name: {"curves", "time_to_error",
         "best_galerkin_vi", "ratio_peer_over_best", ...}}, "per_step": [...],
-        "files": [...]}``.
+        "chain_cost": [...], "files": [...]}``.
     """
     from .workprecision import full_config, quick_config, run_benchmark, write_outputs
 
     cfg = config if config is not None else (quick_config() if quick else full_config())
     if problems is not None:
         cfg = dataclasses.replace(cfg, problems=tuple(problems))
+    if not chain_cost:
+        cfg = dataclasses.replace(cfg, chain_cost_sizes=())
 
     def log(msg: str) -> None:
         if verbose:
@@ -111,9 +131,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument(
         "--problems",
         nargs="+",
-        choices=("pendulum", "kepler"),
+        choices=PROBLEMS,
         default=None,
-        help="benchmark problems (default: both)",
+        help="benchmark problems (default: all; --quick leaves out spring_chain_1000)",
+    )
+    parser.add_argument(
+        "--no-chain-cost",
+        action="store_true",
+        help="skip the spring chain's cost-per-step table",
     )
     parser.set_defaults(run=main)
     return parser
@@ -123,7 +148,12 @@ def main(args: argparse.Namespace) -> int:
     """Run ``galerkin-vi bench`` with parsed ``args``; return the exit status (0)."""
     start = time.perf_counter()
     problems = tuple(args.problems) if getattr(args, "problems", None) else None
-    results = run(quick=args.quick, output=args.output, problems=problems)
+    results = run(
+        quick=args.quick,
+        output=args.output,
+        problems=problems,
+        chain_cost=not getattr(args, "no_chain_cost", False),
+    )
     for path in results["files"]:
         print(f"wrote {path}")
     print(f"benchmark finished in {time.perf_counter() - start:.1f} s")

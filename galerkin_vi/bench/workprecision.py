@@ -1,16 +1,18 @@
-r"""Work-precision benchmark: galerkin_vi against hand-written kernels and scipy.
+r"""Work-precision benchmark: galerkin_vi against hand-written kernels, scipy and REBOUND.
 
 What is measured
 ----------------
-For each problem (pendulum :math:`q_0 = 1.5, v_0 = 0, T = 100`; Kepler
-:math:`e = 0.6` over 50 periods) and each *curve* (one galerkin_vi method, one
-hand-written kernel or one scipy ``solve_ivp`` method):
+For each problem (:data:`PROBLEMS`; see :func:`make_case` for the settings and
+references) and each *curve* (one galerkin_vi method, one hand-written kernel,
+one scipy ``solve_ivp`` method, numbalsoda's compiled DOP853 or a REBOUND
+integrator):
 
 * fixed-step curves sweep the number of steps :math:`N` geometrically
   (:math:`h = T/N`) from a coarse start until the error reaches the round-off
   floor (below 1e-13, or three times in a row not below 0.7 times the best error
   once that is below 1e-9) or one run took longer than the configured time cap;
-* adaptive curves (scipy) sweep ``rtol`` (``atol = rtol``) the same way.
+* adaptive curves (scipy, numbalsoda, IAS15) sweep their tolerance (``rtol``
+  with ``atol = rtol``; IAS15's ``epsilon``) the same way.
 
 Each point records the wall time (``time.perf_counter``, minimum over
 ``repeats`` runs; all points of all curves are re-timed in interleaved rounds,
@@ -26,24 +28,21 @@ From the curves: the time to reach a final error of 1e-4, 1e-8 and 1e-11
 best galerkin_vi configuration at each target, and the ratio of each peer's
 time to it (> 1: galerkin_vi is faster).
 
-A separate per-step table compares galerkin_vi with the hand-written kernel of
+Two further tables: per step, galerkin_vi against the hand-written kernel of
 the same method at the same h and Newton tolerance (time per step, interleaved
-repeats, minimum).
+repeats, minimum); and the cost per step of galerkin_vi s = 2 Gauss(2) on the
+spring chain against its length N at a fixed h.
 
 References
 ----------
-* Kepler: exact, by Kepler's equation solved with mpmath at 40 digits (the mean
-  anomaly reduced in extended precision); :func:`galerkin_vi.problems.kepler_position`
-  (float64) agrees to 6e-14.
-* Pendulum: exact, :math:`q(t) = 2\arcsin(k\,\mathrm{cd}(t \mid k^2))` with
-  :math:`k = \sin(q_0/2)` (released from rest), evaluated with mpmath at 40
-  digits. It is cross-checked in every run against galerkin_vi degree 6 with
-  ``gauss_legendre(6)`` at h = 0.1 and scipy DOP853 at rtol = atol = 1e-14;
-  both differences are reported.
+See :mod:`.cases` (:func:`~.cases.make_case`): exact for the pendulum and Kepler,
+numerical and cross-checked for the others; computed once per process.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import json
 import math
 import os
@@ -53,22 +52,35 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
-import mpmath
 import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 import galerkin_vi as gvi
-from galerkin_vi import problems
 
 from . import handwritten as hw
+from .cases import (
+    CHAIN_BETA,
+    PROBLEMS,
+    Case,
+    ReboundSetup,
+    chain_problem,
+    make_case,
+    numbalsoda_available,
+    numbalsoda_dop853,
+    rebound_available,
+    reference_checks,
+)
 
 __all__ = [
     "PER_STEP_PAIRS",
+    "PROBLEMS",
     "TARGETS",
     "BenchConfig",
     "Case",
+    "chain_cost",
     "full_config",
     "make_case",
     "quick_config",
@@ -94,7 +106,15 @@ _HW_LABELS = {
     "verlet": "Störmer–Verlet",
     **{f"gauss{s}": f"{s}-stage Gauss" for s in range(1, 9)},
     **{f"gauss{s}-simplified": f"{s}-stage Gauss (simplified Newton)" for s in range(1, 9)},
+    **{f"gauss{s}-fixed-point": f"{s}-stage Gauss (fixed point)" for s in range(1, 9)},
     **{f"lobatto{r}": f"{r}-stage Lobatto IIIA–IIIB" for r in range(2, 9)},
+}
+
+#: adaptive peers outside scipy, used when importable: label -> family
+OPTIONAL_PEERS = {
+    "numbalsoda DOP853": "numbalsoda",
+    "REBOUND IAS15": "REBOUND",
+    "REBOUND WHFast": "REBOUND",
 }
 
 
@@ -106,39 +126,57 @@ class BenchConfig:
     Attributes
     ----------
     problems : tuple of str
-        ``"pendulum"`` and/or ``"kepler"``.
+        Names from :data:`PROBLEMS`.
     gvi_methods : tuple of (int, str)
         galerkin_vi degree and quadrature family (``"lobatto"``: ``gauss_lobatto(s + 1)``,
         ``"gauss"``: ``gauss_legendre(s)``).
     handwritten : tuple of str
-        ``"verlet"``, ``"gaussS"``, ``"gaussS-simplified"``, ``"lobattoR"``.
+        ``"verlet"``, ``"gaussS"``, ``"gaussS-simplified"``, ``"gaussS-fixed-point"``,
+        ``"lobattoR"``; a problem runs those its case allows (:attr:`Case.hw_allowed`).
     ivp_methods : tuple of str
-        scipy ``solve_ivp`` methods.
+        scipy ``solve_ivp`` methods (a problem may exclude some: :attr:`Case.ivp_methods`).
+    peers : tuple of str
+        Optional peers, run where they apply and are importable:
+        ``"numbalsoda"`` (compiled DOP853), ``"ias15"`` and ``"whfast"`` (REBOUND).
     ivp_min_rtol : dict
-        Tightest rtol per scipy method.
+        Tightest tolerance per adaptive method (``"IAS15"``: its ``epsilon``).
     step_factor : float
         Ratio of successive step counts.
     rtol_factor : float
-        Ratio of successive rtols (scipy sweeps start at 1e-3).
+        Ratio of successive rtols (sweeps start at 1e-3; IAS15's at 1e-2).
     time_cap, ivp_time_cap : float
-        A fixed-step (scipy) sweep stops once its last run took longer than this (seconds).
+        A fixed-step (adaptive) sweep stops once its last run took longer than this (seconds).
     repeats : int
         Timed runs per point (minimum reported), in interleaved rounds.
     energy_samples : int
         States saved by the untimed error run, for the energy error.
     per_step_pairs : tuple of str
         Keys of :data:`PER_STEP_PAIRS` for the per-step table.
+    per_step_problems : tuple of str
+        Problems of the per-step table (separable ones only).
     per_step_time : float
-        Target duration (s) of one galerkin_vi run in the per-step table.
+        Target duration (s) of one galerkin_vi run in the per-step and chain-cost tables.
     per_step_repeats : int
+    chain_cost_sizes : tuple of int
+        Chain lengths N of the cost-per-step table (empty: no table).
+    overrides : dict
+        Per problem, fields of this configuration to replace for that problem
+        (e.g. ``{"fpu": {"gvi_methods": ((4, "gauss"),)}}``).
     """
 
-    problems: tuple[str, ...] = ("pendulum", "kepler")
+    problems: tuple[str, ...] = PROBLEMS[:-1]
     gvi_methods: tuple[tuple[int, str], ...] = ()
     handwritten: tuple[str, ...] = ()
     ivp_methods: tuple[str, ...] = ()
+    peers: tuple[str, ...] = ()
     ivp_min_rtol: dict[str, float] = field(
-        default_factory=lambda: {"DOP853": 3e-14, "RK45": 1e-11, "Radau": 1e-10}
+        default_factory=lambda: {
+            "DOP853": 3e-14,
+            "RK45": 1e-11,
+            "Radau": 1e-10,
+            "numbalsoda": 1e-15,
+            "IAS15": 1e-10,
+        }
     )
     step_factor: float = 2.0
     rtol_factor: float = 10.0
@@ -147,31 +185,104 @@ class BenchConfig:
     repeats: int = 2
     energy_samples: int = 1000
     per_step_pairs: tuple[str, ...] = tuple(PER_STEP_PAIRS)
+    per_step_problems: tuple[str, ...] = ("pendulum", "kepler")
     per_step_time: float = 0.05
     per_step_repeats: int = 5
+    chain_cost_sizes: tuple[int, ...] = ()
     targets: tuple[float, ...] = TARGETS
+    overrides: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def for_problem(self, name: str) -> BenchConfig:
+        """This configuration with the overrides of problem ``name`` applied."""
+        extra = self.overrides.get(name)
+        if not extra:
+            return self
+        return dataclasses.replace(self, **extra)
+
+
+# galerkin_vi and hand-written curves of the problems beyond pendulum and Kepler
+_GVI_HIGH = ((2, "gauss"), (3, "lobatto"), (4, "gauss"), (6, "gauss"))
+_GVI_ALL = tuple((s, fam) for s in (1, 2, 3, 4, 6) for fam in ("lobatto", "gauss"))
 
 
 def quick_config() -> BenchConfig:
-    """``--quick``: a few methods per family, coarse sweeps, short caps (about 65 s)."""
+    """``--quick``: few methods per family, coarse sweeps, short caps (under 2 minutes).
+
+    Pendulum and Kepler run as before (five galerkin_vi methods, four hand-written
+    kernels, DOP853; RK45 on the pendulum). The other problems run galerkin_vi
+    s = 2, 4, 6 Gauss and s = 3 Lobatto, two to four hand-written kernels and DOP853
+    (RK45 only on the cheap Hénon–Heiles and double pendulum), plus numbalsoda and
+    REBOUND where installed. Left out: the spring chain N = 1000 (its
+    generated kernel alone takes about 4 minutes to compile, and a run 10 times longer
+    than N = 100) and Radau; the chain-cost table stops at N = 100.
+    """
     return BenchConfig(
+        problems=PROBLEMS[:-1],
         gvi_methods=((1, "lobatto"), (2, "gauss"), (3, "lobatto"), (4, "gauss"), (6, "gauss")),
         handwritten=("verlet", "gauss2", "gauss3", "lobatto4"),
         ivp_methods=("DOP853", "RK45"),
+        peers=("numbalsoda", "ias15", "whfast"),
         step_factor=2.0,
-        rtol_factor=math.sqrt(10.0),
-        time_cap=0.2,
-        ivp_time_cap=1.0,
+        rtol_factor=10.0,
+        time_cap=0.1,
+        ivp_time_cap=0.3,
         repeats=2,
-        per_step_time=0.04,
+        energy_samples=200,
+        per_step_time=0.03,
         per_step_repeats=5,
+        chain_cost_sizes=(10, 100),
+        overrides={
+            # DOP853 needs about 0.3 s (Kepler, solar system) and 0.5 s (FPU) to reach 1e-8
+            "kepler": {"ivp_methods": ("DOP853",), "ivp_time_cap": 0.6},
+            # galerkin_vi takes 0.1-0.2 s per run at the coarsest useful steps of these three
+            "outer_solar_system": {
+                "gvi_methods": _GVI_HIGH,
+                "handwritten": ("verlet", "gauss4-fixed-point", "gauss6-fixed-point"),
+                "ivp_methods": ("DOP853",),
+                "time_cap": 0.25,
+                "ivp_time_cap": 0.6,
+            },
+            "henon_heiles": {
+                "gvi_methods": _GVI_HIGH,
+                "handwritten": ("verlet", "gauss2", "lobatto4", "gauss6"),
+            },
+            "double_pendulum": {"gvi_methods": _GVI_HIGH},
+            "fpu": {
+                "gvi_methods": _GVI_HIGH,
+                "handwritten": ("verlet", "gauss2", "gauss6"),
+                "ivp_methods": ("DOP853",),
+                "time_cap": 0.2,
+                "ivp_time_cap": 0.8,
+            },
+            "spring_chain_100": {
+                "gvi_methods": _GVI_HIGH,
+                "handwritten": ("verlet", "gauss4-fixed-point"),
+                "ivp_methods": ("DOP853",),
+                "time_cap": 0.2,
+            },
+        },
     )
 
 
 def full_config() -> BenchConfig:
-    """The full run: every configuration, finer sweeps, longer caps (about 10 minutes)."""
+    """The full run: more configurations, finer sweeps, longer caps (under 30 minutes).
+
+    Pendulum and Kepler: all ten galerkin_vi methods. The others: galerkin_vi s = 2,
+    4, 6 with Gauss and s = 3, 4, 6 with Lobatto quadrature (the chains fewer), with
+    shorter caps; Radau everywhere except on the N = 1000 chain (a dense 2000 x 2000
+    Jacobian per step).
+    """
+    many = (
+        (2, "gauss"),
+        (3, "lobatto"),
+        (4, "gauss"),
+        (4, "lobatto"),
+        (6, "gauss"),
+        (6, "lobatto"),
+    )
     return BenchConfig(
-        gvi_methods=tuple((s, fam) for s in (1, 2, 3, 4, 6) for fam in ("lobatto", "gauss")),
+        problems=PROBLEMS,
+        gvi_methods=_GVI_ALL,
         handwritten=(
             "verlet",
             "gauss1",
@@ -184,13 +295,61 @@ def full_config() -> BenchConfig:
             "lobatto4",
         ),
         ivp_methods=("DOP853", "RK45", "Radau"),
+        peers=("numbalsoda", "ias15", "whfast"),
         step_factor=math.sqrt(2.0),
-        rtol_factor=10.0**0.25,
-        time_cap=1.5,
-        ivp_time_cap=5.0,
+        rtol_factor=10.0**0.5,
+        time_cap=0.75,
+        ivp_time_cap=2.5,
         repeats=3,
-        per_step_time=0.25,
+        per_step_time=0.15,
         per_step_repeats=7,
+        per_step_problems=("pendulum", "kepler", "henon_heiles", "outer_solar_system"),
+        chain_cost_sizes=(10, 100, 1000),
+        overrides={
+            "outer_solar_system": {
+                "gvi_methods": many,
+                "handwritten": (
+                    "verlet",
+                    "gauss2-fixed-point",
+                    "gauss4-fixed-point",
+                    "gauss6-fixed-point",
+                    "gauss6",
+                    "lobatto4",
+                ),
+                "time_cap": 1.0,
+            },
+            "henon_heiles": {
+                "gvi_methods": many,
+                "handwritten": ("verlet", "gauss2", "gauss4", "gauss6", "lobatto3", "lobatto4"),
+            },
+            "double_pendulum": {"gvi_methods": many},
+            "fpu": {
+                "gvi_methods": many,
+                "handwritten": ("verlet", "gauss2", "gauss4", "gauss6", "lobatto4"),
+                "time_cap": 0.5,
+                "ivp_time_cap": 2.0,
+            },
+            "spring_chain_100": {
+                "gvi_methods": ((1, "lobatto"), *_GVI_HIGH),
+                "handwritten": (
+                    "verlet",
+                    "gauss2-fixed-point",
+                    "gauss4-fixed-point",
+                    "gauss6-fixed-point",
+                ),
+                "time_cap": 0.5,
+                "ivp_time_cap": 2.0,
+            },
+            "spring_chain_1000": {
+                "gvi_methods": ((1, "lobatto"), (2, "gauss"), (4, "gauss"), (6, "gauss")),
+                "handwritten": ("verlet", "gauss4-fixed-point", "gauss6-fixed-point"),
+                "time_cap": 1.5,
+                "ivp_time_cap": 3.0,
+                "repeats": 2,
+                "energy_samples": 100,
+                "step_factor": 2.0,
+            },
+        },
     )
 
 
@@ -208,94 +367,10 @@ def tiny_config() -> BenchConfig:
         repeats=1,
         energy_samples=50,
         per_step_pairs=("s=2 Gauss(2) vs 2-stage Gauss",),
+        per_step_problems=("kepler",),
         per_step_time=0.005,
         per_step_repeats=1,
     )
-
-
-# ------------------------------------------------------------------------ cases
-@dataclass(frozen=True)
-class Case:
-    """One benchmark problem: initial data, span, exact final position."""
-
-    name: str
-    problem_id: int
-    problem: problems.Problem
-    q0: NDArray[np.float64]
-    p0: NDArray[np.float64]
-    t_final: float
-    q_ref: NDArray[np.float64]
-    reference: str
-    energy0: float
-    n_start: int
-    per_step_h: float
-    rhs: Callable
-    jac: Callable
-
-
-def _pendulum_exact(q0: float, t: float, dps: int = 40) -> float:
-    """Pendulum released from rest at ``q0``: 2 asin(k cd(t | k^2)), k = sin(q0/2)."""
-    with mpmath.workdps(dps):
-        k = mpmath.sin(mpmath.mpf(q0) / 2)
-        return float(2 * mpmath.asin(k * mpmath.ellipfun("cd", mpmath.mpf(t), m=k * k)))
-
-
-def _kepler_exact(t: float, e: float, dps: int = 40) -> NDArray[np.float64]:
-    """Kepler orbit (a = mu = 1, perihelion at t = 0) at the float time ``t``, mpmath at 40 digits.
-
-    The mean anomaly is reduced modulo 2 pi in extended precision, so the only
-    error is the final rounding (``kepler_position`` reduces in float64: 6e-14 off here).
-    """
-    with mpmath.workdps(dps):
-        ecc = mpmath.mpf(e)
-        mean = mpmath.fmod(mpmath.mpf(t), 2 * mpmath.pi)
-        E = mpmath.findroot(lambda x: x - ecc * mpmath.sin(x) - mean, mean + ecc * mpmath.sin(mean))
-        return np.array(
-            [float(mpmath.cos(E) - ecc), float(mpmath.sqrt(1 - ecc * ecc) * mpmath.sin(E))]
-        )
-
-
-def make_case(name: str) -> Case:
-    """The benchmark problems: ``"pendulum"`` or ``"kepler"``."""
-    if name == "pendulum":
-        prob = problems.pendulum(1.5, 0.0)
-        t_final = 100.0
-        q_ref = np.array([_pendulum_exact(1.5, t_final)])
-        return Case(
-            name="pendulum",
-            problem_id=hw.PENDULUM,
-            problem=prob,
-            q0=prob.q0.copy(),
-            p0=prob.v0.copy(),
-            t_final=t_final,
-            q_ref=q_ref,
-            reference="exact: 2 asin(k cd(T | k^2)), k = sin(0.75), mpmath at 40 digits",
-            energy0=float(hw.energy(hw.PENDULUM, prob.q0[None, :], prob.v0[None, :])[0]),
-            n_start=50,
-            per_step_h=0.1,
-            rhs=hw.pendulum_rhs,
-            jac=hw.pendulum_jac,
-        )
-    if name == "kepler":
-        e = 0.6
-        prob = problems.kepler(e)
-        t_final = 50 * 2 * np.pi
-        return Case(
-            name="kepler",
-            problem_id=hw.KEPLER,
-            problem=prob,
-            q0=prob.q0.copy(),
-            p0=prob.v0.copy(),
-            t_final=t_final,
-            q_ref=_kepler_exact(t_final, e),
-            reference="exact: Kepler's equation solved with mpmath at 40 digits",
-            energy0=float(hw.energy(hw.KEPLER, prob.q0[None, :], prob.v0[None, :])[0]),
-            n_start=50 * 16,
-            per_step_h=2 * np.pi / 200,
-            rhs=hw.kepler_rhs,
-            jac=hw.kepler_jac,
-        )
-    raise ValueError(f"unknown benchmark problem {name!r}; use 'pendulum' or 'kepler'")
 
 
 # ---------------------------------------------------------------------- solvers
@@ -310,15 +385,21 @@ class Sample:
 
 @dataclass
 class Curve:
-    """One line of a work-precision diagram."""
+    """One line of a work-precision diagram.
+
+    ``param_key`` names the swept parameter (``"n_steps"``, ``"rtol"`` or
+    ``"epsilon"``), ``sweep`` its values in sweep order.
+    """
 
     label: str
-    family: str  # "galerkin_vi" | "hand-written" | "scipy"
+    family: str  # "galerkin_vi" | "hand-written" | "scipy" | "numbalsoda" | "REBOUND"
     kind: str  # "fixed-step" | "adaptive"
     order: int | None
     sample: Callable[[float], Sample]  # error run (saves states for the energy)
     timed: Callable[[float], object]  # timing run (final state only)
     warm: Callable[[], object]  # compile or load, on a short run
+    param_key: str = "n_steps"
+    sweep: Sequence[float] = ()
     points: list[dict] = field(default_factory=list)
 
 
@@ -339,9 +420,10 @@ def _every(n: int, samples: int) -> int:
     return max(1, n // samples)
 
 
-def _gvi_curve(case: Case, s: int, family: str, samples: int) -> Curve:
+def _gvi_curve(case: Case, s: int, family: str, cfg: BenchConfig) -> Curve:
     integ = gvi.Integrator(case.problem.system, gvi.Galerkin(s, _quadrature(s, family)))
-    q0, v0, T, prm = case.q0, case.p0, case.t_final, case.problem.params
+    q0, v0, T, prm = case.q0, case.v0, case.t_final, case.problem.params
+    samples = cfg.energy_samples
 
     def timed(n):
         return integ.integrate(q0, v0, h=T / n, n_steps=int(n), save_every=int(n), params=prm)
@@ -351,31 +433,49 @@ def _gvi_curve(case: Case, s: int, family: str, samples: int) -> Curve:
         traj = integ.integrate(
             q0, v0, h=T / n, n_steps=n, save_every=_every(n, samples), params=prm
         )
-        return Sample(traj.q[-1], traj.energy(), {"newton_iterations": traj.mean_newton_iterations})
+        energy = case.energy_from_momenta(traj.q, traj.p, traj)
+        return Sample(traj.q[-1], energy, {"newton_iterations": traj.mean_newton_iterations})
 
     def warm():
         return integ.integrate(q0, v0, h=case.per_step_h, n_steps=10, params=prm)
 
-    return Curve(gvi_label(s, family), "galerkin_vi", "fixed-step", 2 * s, sample, timed, warm)
+    return Curve(
+        gvi_label(s, family),
+        "galerkin_vi",
+        "fixed-step",
+        2 * s,
+        sample,
+        timed,
+        warm,
+        sweep=_step_counts(case.n_start, cfg.step_factor),
+    )
 
 
 def _hw_runner(case: Case, kernel: str) -> tuple[Callable, int]:
-    pid, q0, p0 = case.problem_id, case.q0, case.p0
+    pid, q0, v0, prm = case.problem_id, case.q0, case.v0, case.hw_params
     if kernel == "verlet":
-        return (lambda h, n, every: hw.run_verlet(pid, q0, p0, h, n, every)), 2
+        return (lambda h, n, every: hw.run_verlet(pid, q0, v0, h, n, every, params=prm)), 2
     if kernel.startswith("gauss"):
-        s = int(kernel[5:].split("-")[0])
-        full = not kernel.endswith("-simplified")
-        return (lambda h, n, every: hw.run_gauss(pid, s, q0, p0, h, n, every, full=full)), 2 * s
+        s_text, _, variant = kernel[5:].partition("-")
+        s = int(s_text)
+        iteration = variant or "full"
+
+        def run(h, n, every):
+            return hw.run_gauss(pid, s, q0, v0, h, n, every, iteration=iteration, params=prm)
+
+        return run, 2 * s
     if kernel.startswith("lobatto"):
         r = int(kernel[7:])
-        return (lambda h, n, every: hw.run_lobatto(pid, r, q0, p0, h, n, every)), 2 * r - 2
+        return (
+            lambda h, n, every: hw.run_lobatto(pid, r, q0, v0, h, n, every, params=prm)
+        ), 2 * r - 2
     raise ValueError(f"unknown hand-written kernel {kernel!r}")
 
 
-def _hw_curve(case: Case, kernel: str, samples: int) -> Curve:
+def _hw_curve(case: Case, kernel: str, cfg: BenchConfig) -> Curve:
     run, order = _hw_runner(case, kernel)
     T = case.t_final
+    samples = cfg.energy_samples
 
     def timed(n):
         return run(T / n, int(n), int(n))
@@ -383,7 +483,7 @@ def _hw_curve(case: Case, kernel: str, samples: int) -> Curve:
     def sample(n):
         n = int(n)
         res = run(T / n, n, _every(n, samples))
-        e = hw.energy(case.problem_id, res.q, res.p)
+        e = hw.energy(case.problem_id, res.q, res.p, case.hw_params)
         return Sample(res.q[-1], e, {"newton_iterations": res.mean_newton_iterations})
 
     def warm():
@@ -397,12 +497,19 @@ def _hw_curve(case: Case, kernel: str, samples: int) -> Curve:
         sample,
         timed,
         warm,
+        sweep=_step_counts(case.n_start, cfg.step_factor),
     )
 
 
-def _ivp_curve(case: Case, method: str) -> Curve:
-    y0 = np.concatenate([case.q0, case.p0])
-    d = case.q0.size
+def _state_energy(case: Case, q: NDArray, v: NDArray) -> NDArray:
+    return hw.energy(
+        case.problem_id, np.ascontiguousarray(q), np.ascontiguousarray(v), case.hw_params
+    )
+
+
+def _ivp_curve(case: Case, method: str, cfg: BenchConfig) -> Curve:
+    y0 = np.concatenate([case.q0, case.v0])
+    d = case.dim
     extra = {"jac": case.jac} if method == "Radau" else {}
 
     def timed(rtol):
@@ -415,15 +522,185 @@ def _ivp_curve(case: Case, method: str) -> Curve:
 
     def sample(rtol):
         sol = timed(rtol)
-        e = hw.energy(
-            case.problem_id, np.ascontiguousarray(sol.y[:d].T), np.ascontiguousarray(sol.y[d:].T)
-        )
+        e = _state_energy(case, sol.y[:d].T, sol.y[d:].T)
         return Sample(sol.y[:d, -1].copy(), e, {"nfev": int(sol.nfev), "steps": sol.t.size - 1})
 
     def warm():
-        return solve_ivp(case.rhs, (0.0, 1.0), y0, method=method, rtol=1e-6, atol=1e-6, **extra)
+        return solve_ivp(
+            case.rhs, (0.0, case.per_step_h), y0, method=method, rtol=1e-6, atol=1e-6, **extra
+        )
 
-    return Curve(f"scipy {method}", "scipy", "adaptive", None, sample, timed, warm)
+    return Curve(
+        f"scipy {method}",
+        "scipy",
+        "adaptive",
+        None,
+        sample,
+        timed,
+        warm,
+        param_key="rtol",
+        sweep=_rtols(1e-3, cfg.ivp_min_rtol.get(method, 1e-10), cfg.rtol_factor),
+    )
+
+
+def _numbalsoda_curve(case: Case, cfg: BenchConfig) -> Curve:
+    """numbalsoda's DOP853 (Hairer's code, compiled), the same right-hand side as a C callback."""
+    dop853 = numbalsoda_dop853()
+    address = hw.numbalsoda_rhs_address()
+    y0 = np.concatenate([case.q0, case.v0])
+    d = case.dim
+    data = hw.numbalsoda_data(case.problem_id, y0.size, case.hw_params)
+    ends = np.array([0.0, case.t_final])
+    grid = np.linspace(0.0, case.t_final, cfg.energy_samples + 1)
+
+    def solve(rtol, t_eval):
+        u, ok = dop853(address, y0, t_eval, data=data, rtol=rtol, atol=rtol, mxstep=1_000_000_000)
+        if not ok:
+            raise RuntimeError(f"numbalsoda dop853 failed at rtol {rtol:g}")
+        return u
+
+    def sample(rtol):
+        u = solve(rtol, grid)
+        return Sample(u[-1, :d].copy(), _state_energy(case, u[:, :d], u[:, d:]), {})
+
+    def warm():
+        return solve(1e-6, np.array([0.0, case.per_step_h]))
+
+    return Curve(
+        "numbalsoda DOP853",
+        "numbalsoda",
+        "adaptive",
+        None,
+        sample,
+        lambda rtol: solve(rtol, ends),
+        warm,
+        param_key="rtol",
+        sweep=_rtols(1e-3, cfg.ivp_min_rtol.get("numbalsoda", 1e-15), cfg.rtol_factor),
+    )
+
+
+def _ias15_curve(case: Case, cfg: BenchConfig) -> Curve:
+    """REBOUND IAS15 (adaptive, 15th order), swept over its ``epsilon``."""
+    setup: ReboundSetup = case.rebound
+    T = case.t_final
+    samples = cfg.energy_samples
+
+    def simulation(eps):
+        sim = setup.simulation()
+        sim.integrator = "ias15"
+        sim.integrator.epsilon = eps
+        return sim
+
+    def timed(eps):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sim = simulation(eps)
+            sim.integrate(T, exact_finish_time=1)
+        return setup.state(sim)
+
+    def sample(eps):
+        sim = simulation(eps)
+        qs, vs = [], []
+        for k in range(1, samples + 1):
+            sim.integrate(T * k / samples, exact_finish_time=int(k == samples))
+            q, v = setup.state(sim)
+            qs.append(q)
+            vs.append(v)
+        steps = int(getattr(sim, "steps_done", 0))
+        return Sample(qs[-1], _state_energy(case, np.array(qs), np.array(vs)), {"steps": steps})
+
+    def warm():
+        sim = simulation(1e-9)
+        sim.integrate(case.per_step_h, exact_finish_time=1)
+
+    return Curve(
+        "REBOUND IAS15",
+        "REBOUND",
+        "adaptive",
+        15,
+        sample,
+        timed,
+        warm,
+        param_key="epsilon",
+        sweep=_rtols(1e-2, cfg.ivp_min_rtol.get("IAS15", 1e-10), cfg.rtol_factor),
+    )
+
+
+def _whfast_curve(case: Case, cfg: BenchConfig) -> Curve:
+    """REBOUND WHFast (Wisdom–Holman, Jacobi coordinates, symplectic corrector of order 11)."""
+    setup: ReboundSetup = case.rebound
+    T = case.t_final
+    samples = cfg.energy_samples
+
+    def simulation(n):
+        sim = setup.simulation()
+        sim.integrator = "whfast"
+        sim.integrator.corrector = 11
+        sim.integrator.safe_mode = 0
+        sim.dt = T / n
+        return sim
+
+    def timed(n):
+        sim = simulation(int(n))
+        sim.steps(int(n))
+        sim.synchronize()
+        return setup.state(sim)
+
+    def sample(n):
+        n = int(n)
+        sim = simulation(n)
+        sim.integrator.keep_unsynchronized = 1  # outputs do not perturb the run
+        every = _every(n, samples)
+        qs, vs = [], []
+        done = 0
+        while done < n:
+            k = min(every, n - done)
+            sim.steps(k)
+            done += k
+            sim.synchronize()
+            q, v = setup.state(sim)
+            qs.append(q)
+            vs.append(v)
+        return Sample(qs[-1], _state_energy(case, np.array(qs), np.array(vs)), {})
+
+    def warm():
+        sim = simulation(100)
+        sim.steps(10)
+        sim.synchronize()
+
+    return Curve(
+        "REBOUND WHFast",
+        "REBOUND",
+        "fixed-step",
+        2,
+        sample,
+        timed,
+        warm,
+        sweep=_step_counts(case.n_start, cfg.step_factor),
+    )
+
+
+def _curves(case: Case, cfg: BenchConfig, log: Callable[[str], None]) -> list[Curve]:
+    """Every curve of ``case`` under ``cfg`` (peers that do not apply or import are skipped)."""
+    curves = [_gvi_curve(case, s, fam, cfg) for s, fam in cfg.gvi_methods]
+    curves += [_hw_curve(case, k, cfg) for k in cfg.handwritten if case.hw_allowed(k)]
+    methods = [m for m in cfg.ivp_methods if case.ivp_methods is None or m in case.ivp_methods]
+    curves += [_ivp_curve(case, m, cfg) for m in methods]
+    if "numbalsoda" in cfg.peers:
+        if numbalsoda_available():
+            curves.append(_numbalsoda_curve(case, cfg))
+        else:
+            log("  numbalsoda is not installed: its DOP853 peer is skipped")
+    wanted = [p for p in ("ias15", "whfast") if p in cfg.peers]
+    if case.rebound is not None and any(p in case.rebound.integrators for p in wanted):
+        if not rebound_available():
+            log("  rebound is not importable (pip install rebound): REBOUND peers skipped")
+        else:
+            if "ias15" in wanted and "ias15" in case.rebound.integrators:
+                curves.append(_ias15_curve(case, cfg))
+            if "whfast" in wanted and "whfast" in case.rebound.integrators:
+                curves.append(_whfast_curve(case, cfg))
+    return curves
 
 
 # ---------------------------------------------------------------------- sweeps
@@ -451,20 +728,15 @@ _STALL_BELOW = 1e-9
 
 def _sweep(case: Case, curve: Curve, cfg: BenchConfig, log: Callable[[str], None]) -> None:
     """Fill ``curve.points`` by one sweep (error run + one timed run per point)."""
-    if curve.kind == "fixed-step":
-        params: Sequence[float] = _step_counts(case.n_start, cfg.step_factor)
-    else:
-        method = curve.label.split()[-1]
-        params = _rtols(cfg.ivp_min_rtol.get(method, 1e-10), cfg.rtol_factor)
     best = math.inf
     failures = stalled = 0
-    for param in params:
+    for param in curve.sweep:
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 smp = curve.sample(param)
             elapsed = _clock(lambda p=param: curve.timed(p))
-        except (gvi.ConvergenceError, RuntimeError, FloatingPointError) as exc:
+        except (gvi.ConvergenceError, RuntimeError, FloatingPointError, ValueError) as exc:
             failures += 1
             log(f"    {curve.label}: {param:g} failed ({type(exc).__name__})")
             if failures > 4 and not curve.points:
@@ -472,7 +744,7 @@ def _sweep(case: Case, curve: Curve, cfg: BenchConfig, log: Callable[[str], None
             continue
         err = _relative_error(case, smp.q_final)
         point = {
-            ("n_steps" if curve.kind == "fixed-step" else "rtol"): param,
+            curve.param_key: param,
             "time": elapsed,
             "error": err,
             "energy_error": _energy_error(case, smp.energy),
@@ -485,10 +757,11 @@ def _sweep(case: Case, curve: Curve, cfg: BenchConfig, log: Callable[[str], None
             continue
         if err < _FLOOR:
             break
-        # at the round-off floor: three times in a row no real improvement on an accurate
-        # fixed-step curve (adaptive sweeps run to their tightest rtol: their error falls slowly
-        # and unevenly with rtol)
-        stalled = stalled + 1 if (best < _STALL_BELOW and err > 0.7 * best) else 0
+        # at the round-off floor: three times no real improvement on an accurate fixed-step
+        # curve (adaptive sweeps run to their tightest rtol: their error falls slowly and
+        # unevenly with rtol)
+        if best < _STALL_BELOW and err > 0.7 * best:
+            stalled += 1
         if curve.kind == "fixed-step" and stalled >= 3:
             break
         best = min(best, err)
@@ -507,12 +780,15 @@ def _step_counts(n_start: int, factor: float, n_max: int = 50_000_000) -> list[i
     return out
 
 
-def _rtols(min_rtol: float, factor: float) -> list[float]:
+def _rtols(start: float, min_rtol: float, factor: float) -> list[float]:
+    """Tolerances from ``start`` down by ``factor``, ending at ``min_rtol`` itself."""
     out = []
-    x = 1e-3
+    x = start
     while x >= min_rtol * 0.999:
         out.append(float(f"{x:.3g}"))
         x /= factor
+    if not out or out[-1] > min_rtol * 1.001:
+        out.append(min_rtol)
     return out
 
 
@@ -521,10 +797,10 @@ def _retime(curves: Sequence[Curve], repeats: int) -> None:
     jobs = [(c, p) for c in curves for p in c.points]
     for rnd in range(repeats - 1):
         for curve, point in jobs if rnd % 2 else reversed(jobs):
-            param = point.get("n_steps", point.get("rtol"))
+            param = point[curve.param_key]
             try:
                 elapsed = _clock(lambda c=curve, p=param: c.timed(p))
-            except (gvi.ConvergenceError, RuntimeError):
+            except (gvi.ConvergenceError, RuntimeError, ValueError):
                 continue
             point["time"] = min(point["time"], elapsed)
 
@@ -580,33 +856,72 @@ def _summarise(curves: Sequence[Curve], targets: Sequence[float]) -> dict:
     return {"time_to_error": tte, "best_galerkin_vi": best, "ratio_peer_over_best": ratios}
 
 
+def best_peer_ratios(entry: dict, target: str) -> dict[str, tuple[str, float] | None]:
+    """Per peer family, the fastest curve of that family at ``target``: (label, ratio to gvi).
+
+    Families: ``"DOP853"`` (scipy), ``"scipy"`` (any scipy method), ``"hand-written"``,
+    ``"numbalsoda"``, ``"IAS15"``, ``"WHFast"``. Missing when no such curve
+    reached the target or galerkin_vi did not.
+    """
+    ratios = entry["ratio_peer_over_best"][target]
+    curves = entry["curves"]
+    groups = {
+        "DOP853": lambda lab: lab == "scipy DOP853",
+        "scipy": lambda lab: curves[lab]["family"] == "scipy",
+        "hand-written": lambda lab: curves[lab]["family"] == "hand-written",
+        "numbalsoda": lambda lab: curves[lab]["family"] == "numbalsoda",
+        "IAS15": lambda lab: lab == "REBOUND IAS15",
+        "WHFast": lambda lab: lab == "REBOUND WHFast",
+    }
+    out: dict[str, tuple[str, float] | None] = {}
+    for key, member in groups.items():
+        found = [(r, lab) for lab, r in ratios.items() if member(lab) and r is not None]
+        present = any(member(lab) for lab in ratios)
+        if not present:
+            continue
+        out[key] = (min(found)[1], min(found)[0]) if found else None
+    return out
+
+
 # ------------------------------------------------------------------- per-step
 def _per_step_row(case: Case, key: str, cfg: BenchConfig) -> dict:
     """galerkin_vi against its hand-written twin at the same h: interleaved repeats, minimum."""
     (s, family), kernel = PER_STEP_PAIRS[key]
     h = case.per_step_h
+    prm = case.problem.params
     integ = gvi.Integrator(case.problem.system, gvi.Galerkin(s, _quadrature(s, family)))
     run_hw, _ = _hw_runner(case, kernel)
-    simplified = _hw_runner(case, kernel + "-simplified")[0] if kernel.startswith("gauss") else None
+    variants = {}
+    if kernel.startswith("gauss"):
+        for variant in ("simplified", "fixed-point"):
+            variants[variant] = _hw_runner(case, f"{kernel}-{variant}")[0]
 
     def gvi_run(n, every):
-        return integ.integrate(case.q0, case.p0, h=h, n_steps=n, save_every=every)
+        return integ.integrate(case.q0, case.v0, h=h, n_steps=n, save_every=every, params=prm)
 
     # warm up, then size the runs so that one galerkin_vi run takes about per_step_time
     gvi_run(10, 10)
     run_hw(h, 10, 10)
-    if simplified is not None:
-        simplified(h, 10, 10)
+    for run in variants.values():
+        run(h, 10, 10)
     probe = 2000
     t_probe = _clock(lambda: gvi_run(probe, probe))
     n = int(min(2_000_000, max(1000, probe * cfg.per_step_time / max(t_probe, 1e-9))))
-    t_gvi = t_hw = t_simp = math.inf
+    t_gvi = t_hw = math.inf
+    t_var = dict.fromkeys(variants, math.inf)
     for _ in range(cfg.per_step_repeats):
         t_gvi = min(t_gvi, _clock(lambda: gvi_run(n, n)))
         t_hw = min(t_hw, _clock(lambda: run_hw(h, n, n)))
-        if simplified is not None:
-            t_simp = min(t_simp, _clock(lambda: simplified(h, n, n)))
+        for name, run in variants.items():
+            try:
+                t_var[name] = min(t_var[name], _clock(lambda r=run: r(h, n, n)))
+            except RuntimeError:
+                pass
     overhead = min(_clock(lambda: gvi_run(1, 1)) for _ in range(5))
+
+    def ns(t):
+        return 1e9 * t / n if math.isfinite(t) else None
+
     return {
         "problem": case.name,
         "pair": key,
@@ -617,7 +932,8 @@ def _per_step_row(case: Case, key: str, cfg: BenchConfig) -> dict:
         "ratio": t_gvi / t_hw,
         "gvi_newton_iterations": gvi_run(n, n).mean_newton_iterations,
         "hw_newton_iterations": run_hw(h, n, n).mean_newton_iterations,
-        "hw_simplified_ns_per_step": (1e9 * t_simp / n if simplified is not None else None),
+        "hw_simplified_ns_per_step": ns(t_var["simplified"]) if variants else None,
+        "hw_fixed_point_ns_per_step": ns(t_var["fixed-point"]) if variants else None,
         "gvi_call_overhead_us": 1e6 * overhead,
     }
 
@@ -634,31 +950,101 @@ def _per_step(case: Case, cfg: BenchConfig, log: Callable[[str], None]) -> list[
     return rows
 
 
-# ----------------------------------------------------------------- references
-def _reference_checks(case: Case) -> dict:
-    """Independent checks of the exact references."""
-    if case.name == "kepler":
-        q = np.asarray(problems.kepler_position(case.t_final, 0.6), dtype=float)
-        return {"kepler_position_float64_relative_difference": _relative_error(case, q)}
-    if case.name != "pendulum":
-        return {}
-    n = int(round(case.t_final / 0.1))
-    integ = gvi.Integrator(case.problem.system, gvi.Galerkin(6, gvi.gauss_legendre(6)))
-    traj = integ.integrate(case.q0, case.p0, h=case.t_final / n, n_steps=n, save_every=n)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # scipy raises rtol to 100 eps
-        sol = solve_ivp(
-            case.rhs,
-            (0.0, case.t_final),
-            np.concatenate([case.q0, case.p0]),
-            method="DOP853",
-            rtol=1e-14,
-            atol=1e-14,
+# ------------------------------------------------------------------ chain cost
+CHAIN_COST_H = 0.1
+
+
+def chain_cost(
+    sizes: Sequence[int],
+    target_time: float = 0.05,
+    repeats: int = 5,
+    log: Callable[[str], None] = print,
+) -> list[dict]:
+    """Cost per step of galerkin_vi s = 2 Gauss(2) on :func:`chain_problem` (N masses), h = 0.1.
+
+    For each N: ns/step of galerkin_vi (its banded Newton loop from N = 8), of the
+    hand-written Störmer–Verlet and 2-stage Gauss (fixed point) kernels, the
+    mean Newton iterations and the growth from the previous N. Each run lasts
+    about ``target_time`` (at least 50 steps); minimum over interleaved repeats.
+    """
+    rows: list[dict] = []
+    h = CHAIN_COST_H
+    spring = hw.springs_params(1.0, CHAIN_BETA, 1.0, CHAIN_BETA, 1.0)
+    for n_masses in sizes:
+        start = time.perf_counter()
+        prob = chain_problem(int(n_masses))
+        integ = gvi.Integrator(prob.system, gvi.Galerkin(2, gvi.gauss_legendre(2)))
+
+        def gvi_run(n, integ=integ, prob=prob):
+            return integ.integrate(
+                prob.q0, prob.v0, h=h, n_steps=n, save_every=n, params=prob.params
+            )
+
+        def verlet(n, prob=prob):
+            return hw.run_verlet(hw.SPRINGS, prob.q0, prob.v0, h, n, n, params=spring)
+
+        def gauss2(n, prob=prob):
+            return hw.run_gauss(
+                hw.SPRINGS, 2, prob.q0, prob.v0, h, n, n, iteration="fixed-point", params=spring
+            )
+
+        gvi_run(5)
+        verlet(5)
+        gauss2(5)
+        setup = time.perf_counter() - start
+        probe = 20
+        t_probe = _clock(functools.partial(gvi_run, probe))
+        n = int(min(1_000_000, max(50, probe * target_time / max(t_probe, 1e-9))))
+        n_verlet = n * 20
+        jobs = {
+            "gvi": functools.partial(gvi_run, n),
+            "verlet": functools.partial(verlet, n_verlet),
+            "gauss": functools.partial(gauss2, n),
+        }
+        best = dict.fromkeys(jobs, math.inf)
+        for _ in range(repeats):
+            for key, job in jobs.items():
+                best[key] = min(best[key], _clock(job))
+        t_gvi, t_verlet, t_gauss = best["gvi"], best["verlet"], best["gauss"]
+        try:
+            banded = bool(integ._spec.banded)
+        except AttributeError:  # the integrator's internals changed
+            banded = None
+        row = {
+            "n_masses": int(n_masses),
+            "h": h,
+            "n_steps": n,
+            "gvi_ns_per_step": 1e9 * t_gvi / n,
+            "gvi_newton_iterations": gvi_run(n).mean_newton_iterations,
+            "gvi_banded": banded,
+            "gvi_constant_mass": bool(integ.uses_constant_mass),
+            "hw_verlet_ns_per_step": 1e9 * t_verlet / n_verlet,
+            "hw_gauss2_fixed_point_ns_per_step": 1e9 * t_gauss / n,
+            "hw_gauss2_fixed_point_iterations": gauss2(n).mean_newton_iterations,
+            "setup_seconds": setup,
+        }
+        if rows:
+            prev = rows[-1]
+            row["growth_from_previous"] = row["gvi_ns_per_step"] / prev["gvi_ns_per_step"]
+            row["hw_gauss2_growth_from_previous"] = (
+                row["hw_gauss2_fixed_point_ns_per_step"] / prev["hw_gauss2_fixed_point_ns_per_step"]
+            )
+        log(
+            f"  chain N = {n_masses:5d}: galerkin_vi s=2 Gauss(2) {row['gvi_ns_per_step']:10.0f} "
+            f"ns/step ({row['gvi_newton_iterations']:.2f} its), hand-written 2-stage Gauss "
+            f"(fixed point) {row['hw_gauss2_fixed_point_ns_per_step']:9.0f} ns/step, Verlet "
+            f"{row['hw_verlet_ns_per_step']:8.0f} ns/step; set-up {setup:.1f} s"
         )
-    return {
-        "gvi_s6_gauss6_h0.1_relative_difference": _relative_error(case, traj.q[-1]),
-        "dop853_rtol1e-14_relative_difference": _relative_error(case, sol.y[:1, -1]),
-    }
+        rows.append(row)
+    return rows
+
+
+def chain_growth(rows: Sequence[dict], small: int = 100, large: int = 1000) -> float | None:
+    """galerkin_vi's cost per step at N = ``large`` over that at N = ``small`` (issue: <= 15)."""
+    by_n = {r["n_masses"]: r["gvi_ns_per_step"] for r in rows}
+    if small in by_n and large in by_n:
+        return by_n[large] / by_n[small]
+    return None
 
 
 # ------------------------------------------------------------------------ run
@@ -675,7 +1061,7 @@ def _machine() -> dict:
     import numba
     import scipy
 
-    return {
+    out = {
         "cpu": cpu,
         "cpus": os.cpu_count(),
         "python": sys.version.split()[0],
@@ -685,6 +1071,14 @@ def _machine() -> dict:
         "numba": numba.__version__,
         "galerkin_vi": gvi.__version__,
     }
+    for name in ("rebound", "numbalsoda"):
+        try:
+            from importlib.metadata import version
+
+            out[name] = version(name)
+        except Exception:  # not installed
+            out[name] = None
+    return out
 
 
 def _load() -> list[float] | None:
@@ -710,42 +1104,74 @@ def run_benchmark(cfg: BenchConfig, quick: bool, log: Callable[[str], None] = pr
         },
         "problems": {},
         "per_step": [],
+        "chain_cost": [],
     }
     for name in cfg.problems:
+        pcfg = cfg.for_problem(name)
+        t0 = time.perf_counter()
         case = make_case(name)
-        log(f"[{name}] T = {case.t_final:.6g}, reference: {case.reference}")
-        curves = [_gvi_curve(case, s, fam, cfg.energy_samples) for s, fam in cfg.gvi_methods]
-        curves += [_hw_curve(case, kernel, cfg.energy_samples) for kernel in cfg.handwritten]
-        curves += [_ivp_curve(case, method) for method in cfg.ivp_methods]
-        warm = {c.label: _clock(c.warm) for c in curves}
+        log(
+            f"[{name}] T = {case.t_final:.6g}, reference: {case.reference} "
+            f"({time.perf_counter() - t0:.1f} s)"
+        )
+        curves = _curves(case, pcfg, log)
+        warm = {}
+        for c in curves:
+            try:
+                warm[c.label] = _clock(c.warm)
+            except Exception as exc:  # a peer that cannot run here is dropped, with a note
+                log(f"  {c.label}: warm-up failed ({type(exc).__name__}: {exc}); skipped")
+                warm[c.label] = None
+        curves = [c for c in curves if warm[c.label] is not None]
         log(f"  warm-up (compile or load) {time.perf_counter() - start:.1f} s since start")
-        checks = _reference_checks(case)
+        checks = reference_checks(case)
         for curve in curves:
-            _sweep(case, curve, cfg, log)
+            _sweep(case, curve, pcfg, log)
             if curve.points:
                 last = curve.points[-1]
                 log(
                     f"  {curve.label:52s} {len(curve.points):3d} points, last: "
                     f"{last['time']:.3g} s, error {last['error']:.2e}"
                 )
-        _retime(curves, cfg.repeats)
+        curves = [c for c in curves if c.points]
+        _retime(curves, pcfg.repeats)
         entry = {
+            "title": case.title,
+            "setting": case.setting,
             "t_final": case.t_final,
             "reference": case.reference,
             "reference_position": case.q_ref.tolist(),
             "reference_checks": checks,
             "energy0": case.energy0,
-            "first_call_seconds": warm,
+            "first_call_seconds": {k: v for k, v in warm.items() if v is not None},
+            "seconds": time.perf_counter() - t0,
             "curves": {
-                c.label: {"family": c.family, "kind": c.kind, "order": c.order, "points": c.points}
+                c.label: {
+                    "family": c.family,
+                    "kind": c.kind,
+                    "order": c.order,
+                    "param": c.param_key,
+                    "points": c.points,
+                }
                 for c in curves
             },
         }
-        entry.update(_summarise(curves, cfg.targets))
+        entry.update(_summarise(curves, pcfg.targets))
         results["problems"][name] = entry
-    for name in cfg.problems:
-        if cfg.per_step_pairs:
-            results["per_step"] += _per_step(make_case(name), cfg, log)
+        log(
+            f"  {name} done in {entry['seconds']:.1f} s ({time.perf_counter() - start:.1f} s total)"
+        )
+    for name in cfg.per_step_problems:
+        if name not in cfg.problems or not cfg.per_step_pairs:
+            continue
+        case = make_case(name)
+        if case.separable and case.dim <= 20:
+            results["per_step"] += _per_step(case, cfg, log)
+    if cfg.chain_cost_sizes:
+        log("[chain cost per step]")
+        results["chain_cost"] = chain_cost(
+            cfg.chain_cost_sizes, cfg.per_step_time, cfg.per_step_repeats, log
+        )
     results["meta"]["load_average_end"] = _load()
     results["meta"]["elapsed_seconds"] = time.perf_counter() - start
     return results
@@ -760,6 +1186,87 @@ def _fmt_time(entry: dict | None) -> str:
 
 def _fmt_ratio(x: float | None) -> str:
     return "—" if x is None else f"{x:.3g}"
+
+
+_SUMMARY_PEERS = ("DOP853", "numbalsoda", "hand-written", "IAS15", "WHFast")
+
+
+def _summary_lines(results: dict) -> list[str]:
+    """One table over all problems: the best galerkin_vi time and each peer family's ratio."""
+    if not results["problems"]:
+        return []
+    lines = [
+        "## Summary: best galerkin_vi configuration against the peers",
+        "",
+        "Peer time / best galerkin_vi time at the same final error (> 1: galerkin_vi is "
+        "faster). For the hand-written kernels the fastest of them is named. Empty: the "
+        "peer does not apply to the problem or is not installed; —: the peer or galerkin_vi "
+        "did not reach the target within its sweep.",
+        "",
+        "| problem | target | best galerkin_vi (s) | scipy DOP853 | numbalsoda DOP853 | "
+        "best hand-written | REBOUND IAS15 | REBOUND WHFast |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name, entry in results["problems"].items():
+        for target, best in entry["best_galerkin_vi"].items():
+            peers = best_peer_ratios(entry, target)
+            cells = []
+            for key in _SUMMARY_PEERS:
+                if key not in peers:
+                    cells.append("")
+                elif peers[key] is None:
+                    cells.append("—")
+                elif key == "hand-written":
+                    label, ratio = peers[key]
+                    cells.append(f"{ratio:.3g} ({label.removeprefix('hand-written ')})")
+                else:
+                    cells.append(f"{peers[key][1]:.3g}")
+            gvi_cell = (
+                "—"
+                if best is None
+                else f"{best['config'].removeprefix('galerkin_vi ')}: {_fmt_time(best)}"
+            )
+            lines.append(
+                f"| {entry.get('title', name)} | {target} | {gvi_cell} | "
+                + " | ".join(cells)
+                + " |"
+            )
+    lines.append("")
+    return lines
+
+
+def _chain_cost_lines(rows: Sequence[dict]) -> list[str]:
+    """The cost-per-step table of the spring chain against N."""
+    if not rows:
+        return []
+    lines = [
+        "## Spring chain: cost per step against N",
+        "",
+        f"galerkin_vi s = 2 Gauss(2) on the FPU-beta chain (beta = {CHAIN_BETA:g}, velocity "
+        f"pulse) at h = {rows[0]['h']:g}, against the hand-written 2-stage Gauss (fixed-point "
+        "iteration, cost linear in N) and Störmer–Verlet. Growth: ns/step over that of the "
+        "previous N.",
+        "",
+        "| N | galerkin_vi ns/step | growth | Newton its | banded | hw 2-stage Gauss (fixed "
+        "point) ns/step | growth | its | hw Verlet ns/step | galerkin_vi / hw Gauss |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        growth = r.get("growth_from_previous")
+        hw_growth = r.get("hw_gauss2_growth_from_previous")
+        lines.append(
+            f"| {r['n_masses']} | {r['gvi_ns_per_step']:.0f} | "
+            f"{'' if growth is None else f'{growth:.2f}×'} | {r['gvi_newton_iterations']:.2f} | "
+            f"{r['gvi_banded']} | {r['hw_gauss2_fixed_point_ns_per_step']:.0f} | "
+            f"{'' if hw_growth is None else f'{hw_growth:.2f}×'} | "
+            f"{r['hw_gauss2_fixed_point_iterations']:.2f} | {r['hw_verlet_ns_per_step']:.0f} | "
+            f"{r['gvi_ns_per_step'] / r['hw_gauss2_fixed_point_ns_per_step']:.2f} |"
+        )
+    growth = chain_growth(rows)
+    if growth is not None:
+        lines += ["", f"Growth N = 100 → 1000: **{growth:.1f}×** (issue 3 target: ≤ 15×)."]
+    lines.append("")
+    return lines
 
 
 def markdown(results: dict) -> str:
@@ -777,6 +1284,7 @@ def markdown(results: dict) -> str:
         f"Times: {meta['timer']}. Error: {meta['error']}. Energy error: {meta['energy_error']}.",
         "",
     ]
+    lines += _summary_lines(results)
     if results["per_step"]:
         lines += [
             "## Per step: galerkin_vi / hand-written kernel of the same method",
@@ -786,16 +1294,19 @@ def markdown(results: dict) -> str:
             "`save_every = n_steps`.",
             "",
             "| problem | method | h | steps | galerkin_vi ns/step | hand-written ns/step | "
-            "ratio | Newton its gvi / hw | hw simplified Newton ns/step |",
-            "|---|---|---|---|---|---|---|---|---|",
+            "ratio | Newton its gvi / hw | hw simplified Newton ns/step | "
+            "hw fixed point ns/step |",
+            "|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in results["per_step"]:
             simp = r["hw_simplified_ns_per_step"]
+            fixed = r.get("hw_fixed_point_ns_per_step")
             lines.append(
                 f"| {r['problem']} | {r['pair']} | {r['h']:.4g} | {r['n_steps']} | "
                 f"{r['gvi_ns_per_step']:.1f} | {r['hw_ns_per_step']:.1f} | "
                 f"**{r['ratio']:.2f}** | {r['gvi_newton_iterations']:.2f} / "
-                f"{r['hw_newton_iterations']:.2f} | {'—' if simp is None else f'{simp:.1f}'} |"
+                f"{r['hw_newton_iterations']:.2f} | {'—' if simp is None else f'{simp:.1f}'} | "
+                f"{'—' if fixed is None else f'{fixed:.1f}'} |"
             )
         overheads = [r["gvi_call_overhead_us"] for r in results["per_step"]]
         lines += [
@@ -804,12 +1315,14 @@ def markdown(results: dict) -> str:
             f"{min(overheads):.0f}–{max(overheads):.0f} µs.",
             "",
         ]
+    lines += _chain_cost_lines(results.get("chain_cost", []))
     for name, entry in results["problems"].items():
         targets = list(next(iter(entry["time_to_error"].values())).keys())
+        setting = entry.get("setting") or f"T = {entry['t_final']:.6g}"
         lines += [
-            f"## {name}: time to reach a final relative error (seconds)",
+            f"## {entry.get('title', name)}: time to reach a final relative error (seconds)",
             "",
-            f"T = {entry['t_final']:.6g}; reference: {entry['reference']}.",
+            f"{setting}; reference: {entry['reference']}.",
         ]
         if entry["reference_checks"]:
             checks = ", ".join(f"{k} = {v:.1e}" for k, v in entry["reference_checks"].items())
@@ -857,7 +1370,8 @@ def markdown(results: dict) -> str:
         ]
         for label, curve in entry["curves"].items():
             for p in curve["points"]:
-                x = f"h={p['h']:.3g}" if "h" in p else f"rtol={p['rtol']:.0e}"
+                key = curve.get("param", "n_steps" if "h" in p else "rtol")
+                x = f"h={p['h']:.3g}" if "h" in p else f"{key}={p[key]:.0e}"
                 ee = "—" if p["energy_error"] is None else f"{p['energy_error']:.1e}"
                 st = (
                     f"{p['newton_iterations']:.2f}"
@@ -879,7 +1393,13 @@ def _plots(results: dict, folder: str) -> list[str]:
         import matplotlib.pyplot as plt
     except ImportError:
         return []
-    styles = {"galerkin_vi": "-", "hand-written": "--", "scipy": ":"}
+    styles = {
+        "galerkin_vi": "-",
+        "hand-written": "--",
+        "scipy": ":",
+        "numbalsoda": ":",
+        "REBOUND": "-.",
+    }
     written = []
     for name, entry in results["problems"].items():
         for kind, ykey, ylabel in (
@@ -900,9 +1420,9 @@ def _plots(results: dict, folder: str) -> list[str]:
                     markersize=3,
                     label=label,
                 )
-            ax.set_xlabel("CPU seconds (wall, min of repeats)")
+            ax.set_xlabel("wall seconds (minimum of repeats)")
             ax.set_ylabel(ylabel)
-            ax.set_title(f"{name}: {ylabel} against time")
+            ax.set_title(f"{entry.get('title', name)}: {ylabel} against time")
             ax.grid(True, which="both", alpha=0.3)
             ax.legend(fontsize=7)
             path = os.path.join(folder, f"{name}_{kind}.png")
