@@ -3,7 +3,7 @@
 Usage::
 
     python benchmarks/run.py --quick --output bench-results
-    python benchmarks/run.py --output bench-results          # full run, about 10 minutes
+    python benchmarks/run.py --output bench-results          # full run, 17-22 minutes
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="benchmarks/run.py",
         description="Work-precision benchmark of galerkin_vi against hand-written numba "
-        "kernels and scipy's solve_ivp (see benchmarks/README.md).",
+        "kernels, scipy's solve_ivp, numbalsoda and REBOUND (see benchmarks/README.md).",
     )
     bench.add_arguments(parser)
     return bench.main(parser.parse_args(argv))

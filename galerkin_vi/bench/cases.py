@@ -44,6 +44,7 @@ __all__ = [
     "rebound_available",
     "reference_checks",
     "solar_rebound_setup",
+    "solar_system_constants",
 ]
 
 #: every benchmark problem (``spring_chain_N`` for any N >= 2 works too)
@@ -101,9 +102,7 @@ class Case:
         """
         if not self.separable and traj is not None:
             return traj.energy()
-        inv_mass = np.array(
-            [hw._inverse_mass(self.problem_id, a, self.hw_params) for a in range(self.dim)]
-        )
+        inv_mass = hw.inverse_masses(self.problem_id, self.dim, self.hw_params)
         return hw.energy(self.problem_id, q, np.ascontiguousarray(p * inv_mass), self.hw_params)
 
     def hw_allowed(self, kernel: str) -> bool:
@@ -350,7 +349,7 @@ def make_case(name: str) -> Case:
     * ``pendulum``: q0 = 1.5, v0 = 0, T = 100; exact reference.
     * ``kepler``: e = 0.6, 50 periods; exact reference.
     * ``outer_solar_system``: HLW's six bodies, T = 200 000 days. Reference: the
-      6-stage Gauss method (= galerkin_vi s = 6 Gauss(6)) at h = 25 days, run by
+      6-stage Gauss method (= galerkin_vi s = 6 Gauss(6)) at h = 20 days, run by
       the hand-written kernel, whose round-off floor is lower (see
       ``reference_checks``: galerkin_vi's own run, DOP853 and REBOUND IAS15).
     * ``henon_heiles``: the library default (chaotic, H = 1/8), T = 50.
@@ -365,7 +364,7 @@ def make_case(name: str) -> Case:
         prob = problems.pendulum(1.5, 0.0)
         t_final = 100.0
         q_ref = np.array([_pendulum_exact(1.5, t_final)])
-        fun, jacobian = _ivp_functions(hw.PENDULUM, hw._NO_PARAMS)
+        fun, jacobian = _ivp_functions(hw.PENDULUM, hw.NO_PARAMS)
         return Case(
             name="pendulum",
             title="Pendulum",
@@ -377,7 +376,7 @@ def make_case(name: str) -> Case:
             q_ref=q_ref,
             reference="exact: 2 asin(k cd(T | k^2)), k = sin(0.75), mpmath at 40 digits",
             energy0=float(
-                hw.energy(hw.PENDULUM, prob.q0[None, :], prob.v0[None, :], hw._NO_PARAMS)[0]
+                hw.energy(hw.PENDULUM, prob.q0[None, :], prob.v0[None, :], hw.NO_PARAMS)[0]
             ),
             n_start=50,
             per_step_h=0.1,
@@ -389,7 +388,7 @@ def make_case(name: str) -> Case:
         e = 0.6
         prob = problems.kepler(e)
         t_final = 50 * 2 * np.pi
-        fun, jacobian = _ivp_functions(hw.KEPLER, hw._NO_PARAMS)
+        fun, jacobian = _ivp_functions(hw.KEPLER, hw.NO_PARAMS)
         return Case(
             name="kepler",
             title="Kepler",
@@ -401,7 +400,7 @@ def make_case(name: str) -> Case:
             q_ref=_kepler_exact(t_final, e),
             reference="exact: Kepler's equation solved with mpmath at 40 digits",
             energy0=float(
-                hw.energy(hw.KEPLER, prob.q0[None, :], prob.v0[None, :], hw._NO_PARAMS)[0]
+                hw.energy(hw.KEPLER, prob.q0[None, :], prob.v0[None, :], hw.NO_PARAMS)[0]
             ),
             n_start=50 * 16,
             per_step_h=2 * np.pi / 200,
@@ -427,7 +426,7 @@ def make_case(name: str) -> Case:
             "library default: q0 = (0, -0.2), H = 1/8 (chaotic), T = 50",
             prob,
             hw.HENON_HEILES,
-            hw._NO_PARAMS,
+            hw.NO_PARAMS,
             prob.q0.copy(),
             prob.v0.copy(),
             50.0,
@@ -496,14 +495,22 @@ def make_case(name: str) -> Case:
     raise ValueError(f"unknown benchmark problem {name!r}; use one of {', '.join(PROBLEMS)}")
 
 
+def solar_system_constants(prob: problems.Problem | None = None) -> tuple[float, tuple[float, ...]]:
+    """G and the masses of :func:`galerkin_vi.problems.outer_solar_system` (its parameters)."""
+    prob = problems.outer_solar_system() if prob is None else prob
+    by_name = {str(k): float(v) for k, v in prob.params.items()}
+    return by_name["G"], tuple(by_name[f"m{i}"] for i in range(prob.q0.size // 3))
+
+
 def solar_rebound_setup() -> ReboundSetup:
     """The outer solar system as REBOUND particles (HLW's data, G in AU^3 / (M_sun day^2))."""
-    data = problems.gravitation._outer_solar_system_data()
+    prob = problems.outer_solar_system()
+    G, masses = solar_system_constants(prob)
     return ReboundSetup(
-        G=float(data["G"]),
-        masses=tuple(float(m) for m in data["masses"]),
-        positions=tuple(tuple(float(c) for c in x) for x in data["positions"]),
-        velocities=tuple(tuple(float(c) for c in x) for x in data["velocities"]),
+        G=G,
+        masses=masses,
+        positions=tuple(tuple(float(c) for c in x) for x in prob.q0.reshape(-1, 3)),
+        velocities=tuple(tuple(float(c) for c in x) for x in prob.v0.reshape(-1, 3)),
         planar_test_particle=False,
         integrators=("ias15", "whfast"),
     )
@@ -511,17 +518,19 @@ def solar_rebound_setup() -> ReboundSetup:
 
 def _solar_case() -> Case:
     prob = problems.outer_solar_system()
-    data = problems.gravitation._outer_solar_system_data()
-    prm = hw.n_body_params(data["G"], data["masses"])
+    prm = hw.n_body_params(*solar_system_constants(prob))
     q0, v0 = prob.q0.copy(), prob.v0.copy()
     t_final = 200_000.0
-    n_ref = 8000  # h = 25 days
+    # h = 20 days: not a step of any sweep (they double or multiply by sqrt(2) from 500 steps),
+    # so that no curve point is the reference run itself
+    n_ref = 10_000
     q_ref = _hw_gauss_final(hw.N_BODY, prm, 6, n_ref, t_final, q0, v0)
     fun, jacobian = _ivp_functions(hw.N_BODY, prm)
     setup = solar_rebound_setup()
+    h_ref = t_final / n_ref
     checks = {
-        "gvi_s6_gauss6_h25": _rel(_gvi_final(prob, 6, n_ref, t_final, q0, v0), q_ref),
-        "handwritten_gauss6_h50": _rel(
+        f"gvi_s6_gauss6_h{h_ref:.3g}": _rel(_gvi_final(prob, 6, n_ref, t_final, q0, v0), q_ref),
+        f"handwritten_gauss6_h{2 * h_ref:.3g}": _rel(
             _hw_gauss_final(hw.N_BODY, prm, 6, n_ref // 2, t_final, q0, v0), q_ref
         ),
         f"dop853_rtol{REFERENCE_RTOL:g}": _rel(_dop853_final(fun, q0, v0, t_final), q_ref),
@@ -543,7 +552,7 @@ def _solar_case() -> Case:
         t_final=t_final,
         q_ref=q_ref,
         reference=(
-            "6-stage Gauss (the method of galerkin_vi s=6 Gauss(6)) at h = 25 days, "
+            "6-stage Gauss (the method of galerkin_vi s=6 Gauss(6)) at h = 20 days, "
             "run by the hand-written kernel (lower round-off floor than galerkin_vi's run)"
         ),
         energy0=float(hw.energy(hw.N_BODY, q0[None, :], v0[None, :], prm)[0]),

@@ -88,6 +88,7 @@ __all__ = [
     "DOUBLE_PENDULUM",
     "HENON_HEILES",
     "KEPLER",
+    "NO_PARAMS",
     "N_BODY",
     "PENDULUM",
     "SPRINGS",
@@ -97,6 +98,7 @@ __all__ = [
     "energy",
     "gauss_collocation",
     "gauss_tables",
+    "inverse_masses",
     "jac",
     "lobatto_iiia_iiib",
     "lobatto_tables",
@@ -132,7 +134,8 @@ STATUS_NONFINITE = 3
 
 _TABLE_DIGITS = 40
 
-_NO_PARAMS = np.zeros(0)
+#: the parameter vector of the problems without parameters
+NO_PARAMS = np.zeros(0)
 
 
 def springs_params(
@@ -352,6 +355,12 @@ def _inverse_mass(problem, a, prm):
     if problem == N_BODY:
         return 1.0 / prm[1 + a // 3]
     return 1.0
+
+
+def inverse_masses(problem: int, d: int, prm) -> NDArray[np.float64]:
+    """The diagonal of M^-1 (d coordinates) of a separable problem: v = p * inverse_masses."""
+    prm = np.ascontiguousarray(prm, dtype=float)
+    return np.array([_inverse_mass(problem, a, prm) for a in range(d)])
 
 
 @nb.njit(cache=True)
@@ -970,7 +979,7 @@ def _check(status: int, done: int, name: str) -> None:
 
 
 def _prm(params) -> NDArray[np.float64]:
-    return _NO_PARAMS if params is None else np.ascontiguousarray(params, dtype=float)
+    return NO_PARAMS if params is None else np.ascontiguousarray(params, dtype=float)
 
 
 def run_verlet(
