@@ -46,7 +46,10 @@ def _verify(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"galerkin-vi verify: {exc}", file=sys.stderr)
         return 2
-    total = len(selected) * len(args.degrees) * len(args.families)
+    total = len(args.degrees) * sum(
+        len(args.families) if not problem.system.m else int("lobatto" in args.families)
+        for _, problem, _ in selected
+    )
     bar = _progress_bar(total)
     first = [True]
 

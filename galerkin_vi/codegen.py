@@ -40,7 +40,7 @@ __all__ = [
     "unsupported_functions",
 ]
 
-GENERATOR_VERSION = "3"
+GENERATOR_VERSION = "4"
 _KERNEL_MARKER = "\n# ---- kernel ----\n"
 _END_MARKER = "\n# ---- end kernel ----\n"
 
@@ -63,6 +63,23 @@ class KernelSpec:
     pattern: tuple[tuple[int, int], ...] = ()
     half_bandwidth: int = 0
     banded: bool = False
+    has_fv: bool = False
+    m: int = 0
+    periodic: tuple[bool, ...] = ()
+    constraint_entries: tuple[tuple[str, sp.Expr], ...] = ()
+    constraint_jacobian_entries: tuple[tuple[str, sp.Expr], ...] = ()
+    constraint_rate_entries: tuple[tuple[str, sp.Expr], ...] = ()
+    constraint_hessian_entries: tuple[tuple[str, sp.Expr], ...] = ()
+
+    @property
+    def constraint_parts(self) -> tuple[tuple[str, sp.Expr], ...]:
+        """Every constraint entry, in a fixed order (for hashing)."""
+        return (
+            self.constraint_entries
+            + self.constraint_jacobian_entries
+            + self.constraint_rate_entries
+            + self.constraint_hessian_entries
+        )
 
     @property
     def nnz(self) -> int:
@@ -71,8 +88,10 @@ class KernelSpec:
 
 
 def sparsity_pattern(pieces, n: int, has_lqv: bool) -> tuple[tuple[int, int], ...]:
-    """Union of the structural nonzeros of L_qq, L_vv, L_qv and L_qv^T, row-major."""
-    blocks = [pieces.Lqq, pieces.Lvv] + ([pieces.Lqv] if has_lqv else [])
+    """Union of the structural nonzeros of L_qq + f_q, L_vv, L_qv, f_v and transposes, row-major."""
+    blocks = [pieces.force_q, pieces.Lvv] + ([pieces.Lqv] if has_lqv else [])
+    if pieces.fv is not None:
+        blocks.append(pieces.fv)
     pairs = set()
     for block in blocks:
         for (a, b), e in block.todok().items():
@@ -109,7 +128,9 @@ def kernel_spec(system: LagrangianSystem) -> KernelSpec:
     has_lqv = not system.structure.zero_Lqv
     pattern = sparsity_pattern(p, n, has_lqv)
     half_bandwidth = max(abs(a - b) for a, b in pattern) if pattern else 0
-    banded = use_banded(n, half_bandwidth)
+    m = system.m
+    # the constrained loop is dense: multipliers couple every coordinate they touch
+    banded = use_banded(n, half_bandwidth) and m == 0
     position = {pair: k for k, pair in enumerate(pattern)}
 
     def vector(name: str, column: sp.Matrix) -> list[tuple[str, sp.Expr]]:
@@ -124,12 +145,15 @@ def kernel_spec(system: LagrangianSystem) -> KernelSpec:
                 out.append((f"{name}[{k}]", e.xreplace(rename)))
         return out
 
-    gradient = vector("Lq", p.Lq) + vector("Lv", p.Lv)
+    has_fv = not system.structure.zero_fv
+    # forces enter where L_q does: the kernels see L_q + f and L_qq + f_q
+    gradient = vector("Lq", p.force) + vector("Lv", p.Lv)
     hessian = (
         gradient
-        + matrix("Lqq", p.Lqq)
+        + matrix("Lqq", p.force_q)
         + (matrix("Lqv", p.Lqv) if has_lqv else [])
         + matrix("Lvv", p.Lvv)
+        + (matrix("Fv", p.fv) if has_fv else [])
     )
     return KernelSpec(
         n=n,
@@ -142,7 +166,37 @@ def kernel_spec(system: LagrangianSystem) -> KernelSpec:
         pattern=pattern if banded else (),
         half_bandwidth=half_bandwidth,
         banded=banded,
+        has_fv=has_fv,
+        periodic=system.periodic,
+        **_constraint_entries(system, rename),
     )
+
+
+def _constraint_entries(system: LagrangianSystem, rename: dict) -> dict:
+    r"""Entries of the constraint point functions (empty without constraints).
+
+    ``g[j]``, ``Gq[j n + a]`` (dense Jacobian), ``gt[j]`` and
+    ``Hg[a n + b]`` :math:`= \sum_j \lambda_j \partial^2 g_j/\partial q_a\partial q_b`
+    with the multipliers read from ``lam[j]``.
+    """
+    pieces = system.constraint_pieces
+    if pieces is None:
+        return {}
+    m = system.m
+    rename = dict(rename)
+    rename[system.time_symbol] = sp.Symbol("t", real=True)
+    lam = [sp.Symbol(f"lam[{j}]", real=True) for j in range(m)]
+
+    def flat(name: str, matrix: sp.Matrix) -> tuple[tuple[str, sp.Expr], ...]:
+        return tuple((f"{name}[{k}]", e.xreplace(rename)) for k, e in enumerate(matrix) if e != 0)
+
+    return {
+        "m": m,
+        "constraint_entries": flat("g", pieces.g),
+        "constraint_jacobian_entries": flat("Gq", pieces.jacobian),
+        "constraint_rate_entries": flat("gt", pieces.rate),
+        "constraint_hessian_entries": flat("Hg", pieces.contracted_hessian(lam)),
+    }
 
 
 def _loop_sources() -> str:
@@ -150,7 +204,12 @@ def _loop_sources() -> str:
     pkg = resources.files("galerkin_vi")
     return "".join(
         (pkg / path).read_text()
-        for path in ("codegen.py", "newton.py", "backends/kernel_template.py")
+        for path in (
+            "codegen.py",
+            "newton.py",
+            "backends/kernel_template.py",
+            "backends/constrained_template.py",
+        )
     )
 
 
@@ -162,8 +221,9 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
         backend,
         backend_version,
         sys.version,
-        repr((spec.n, spec.n_params, spec.autonomous, spec.has_Lqv, spec.banded)),
-        repr((spec.half_bandwidth, spec.pattern)),
+        repr((spec.n, spec.n_params, spec.autonomous, spec.has_Lqv, spec.banded, spec.has_fv)),
+        repr((spec.half_bandwidth, spec.pattern, spec.m, spec.periodic)),
+        *(f"{k}={sp.srepr(e)}" for k, e in spec.constraint_parts),
         sp.srepr(spec.lagrangian),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.hessian_entries),
         _loop_sources(),
@@ -326,6 +386,30 @@ def _kernel_section(path: str) -> str:
     return body.split(_END_MARKER, 1)[0]
 
 
+def _constraint_functions(spec: KernelSpec) -> list[str]:
+    """Point functions of the constraints (none without constraints)."""
+    if not spec.m:
+        return []
+    return [
+        *_point_function("point_constraint", "t, q, prm, g", list(spec.constraint_entries), False),
+        *_point_function(
+            "point_constraint_jacobian",
+            "t, q, prm, Gq",
+            list(spec.constraint_jacobian_entries),
+            False,
+        ),
+        *_point_function(
+            "point_constraint_rate", "t, q, prm, gt", list(spec.constraint_rate_entries), False
+        ),
+        *_point_function(
+            "point_constraint_hessian",
+            "t, q, lam, prm, Hg",
+            list(spec.constraint_hessian_entries),
+            False,
+        ),
+    ]
+
+
 def render_module(
     spec: KernelSpec, key: str, decorator: str = 'njit(cache=True, inline="always")'
 ) -> str:
@@ -358,6 +442,14 @@ def render_module(
         f"N_PARAMS = {spec.n_params}",
         f"AUTONOMOUS = {spec.autonomous}",
         f"HAS_LQV = {spec.has_Lqv}",
+        f"HAS_FV = {spec.has_fv}",
+        f"M_CONSTRAINTS = {spec.m}",
+        f"HAS_PERIODIC = {any(spec.periodic)}",
+        "PERIODIC = np.array([{}], dtype=np.bool_)".format(
+            ", ".join(str(x) for x in (spec.periodic or (False,)))
+        ),
+        "TWO_PI_HI = 6.283185307179586",
+        "TWO_PI_LO = 2.4492935982947064e-16",
         f"BANDED = {spec.banded}",
         f"BAND = {spec.half_bandwidth}",
         f"NNZ = {spec.nnz}",
@@ -369,15 +461,18 @@ def render_module(
         ),
         *_point_function(
             "point_hessian",
-            "t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv",
+            "t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv",
             list(spec.hessian_entries),
             large,
         ),
         *_point_function("lagrangian", "t, q, v, prm", [], large, returns=spec.lagrangian),
+        *_constraint_functions(spec),
         "",
     ]
     newton = _kernel_section("newton.py")
     loop = _kernel_section("backends/kernel_template.py")
+    if spec.m:
+        loop += _kernel_section("backends/constrained_template.py")
     # newton's helpers are plain functions; the loop calls them from jitted code
     newton = newton.replace("\ndef ", "\n@kernel\ndef ")
     tail = [f"# end of generated kernel {key}", ""]

@@ -12,8 +12,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import codegen
 from .backends import numpy as numpy_backend
-from .backends import resolve_backend
+from .backends import numpy_constrained, resolve_backend
 from .backends.numba import load_kernels
+from .constraints import consistent_initial_state, project_momentum
 from .errors import ConvergenceError, DegenerateLagrangianError
 from .method import Galerkin
 from .newton import CONVERGED, newton_solve
@@ -90,6 +91,12 @@ class Integrator:
             or not 1 <= maxiter <= 255
         ):
             raise ValueError(f"maxiter must be an int in [1, 255], got {maxiter!r}")
+        if system.m and not method.collocated:
+            raise ValueError(
+                f"{method!r}: a constrained system needs collocated control and quadrature "
+                "nodes, the constraints being imposed at the control points: use "
+                f"Galerkin({method.degree}) (Lobatto nodes, gauss_lobatto({method.degree + 1}))"
+            )
         self.system = system
         self.method = method
         self.backend = resolve_backend(backend)
@@ -99,9 +106,11 @@ class Integrator:
 
     @property
     def kernel_path(self) -> str:
-        r"""Which time loop runs: ``"explicit"``, ``"linear"`` or ``"newton"``.
+        r"""Which time loop runs: ``"constrained"``, ``"explicit"``, ``"linear"`` or ``"newton"``.
 
-        With the compiled backend and ``specialize=True`` (default):
+        ``"constrained"`` for every system with constraints (multipliers in the
+        stage equations, momentum projected at each step's end; both backends).
+        Otherwise, with the compiled backend and ``specialize=True`` (default):
 
         - ``"explicit"``: degree 1 with two Lobatto points on a separable
           :math:`L = \tfrac12 v^TMv + a(t)\cdot v - V(t, q)` (constant :math:`M`) is
@@ -111,11 +120,14 @@ class Integrator:
           one triangular solve per step;
         - ``"newton"``: the general Newton iteration (also the NumPy backend).
         """
+        if self.system.m:
+            return "constrained"
         if self.backend != "numba" or not self.specialize:
             return "newton"
         structure, method = self.system.structure, self.method
         if (
             structure.separable
+            and structure.zero_fv
             and method.degree == 1
             and method.quadrature.family == "gauss_lobatto"
             and method.quadrature.npoints == 2
@@ -148,6 +160,7 @@ class Integrator:
             and self.specialize
             and structure.constant_mass
             and structure.zero_Lqv
+            and structure.zero_fv
         )
 
     def __repr__(self) -> str:
@@ -221,6 +234,7 @@ class Integrator:
         t0: float = 0.0,
         params: Mapping[sp.Symbol | str, float] | None = None,
         save_every: int = 1,
+        project: bool = False,
     ) -> Trajectory:
         """Integrate ``n_steps`` steps of size ``h`` from ``q0`` and ``v0`` or ``p0``.
 
@@ -238,6 +252,12 @@ class Integrator:
             Parameter values overriding the system's defaults (symbols or names).
         save_every : int
             Save every ``save_every``-th state (and always the last).
+        project : bool
+            Constrained systems only: move ``q0`` to the nearest point of the
+            constraint manifold and the momentum onto the hidden constraint.
+            Without it, initial data that violate either by more than
+            :data:`galerkin_vi.constraints.INITIAL_TOLERANCE` are rejected
+            (data within it are projected silently).
 
         Returns
         -------
@@ -248,6 +268,9 @@ class Integrator:
         ConvergenceError
             If a step's Newton solve fails; ``.partial`` holds every saved state
             before the failing step.
+        ValueError
+            For bad arguments, and for constrained systems when the initial data
+            are inconsistent (see ``project``) or the constraints are redundant.
         """
         system = self.system
         q0 = self._state("q0", q0)
@@ -266,20 +289,44 @@ class Integrator:
         prm = system.parameter_vector(params)
         prm_dict = dict(zip(system.params, prm, strict=True))
         p0_arr, v0_arr = self._initial_momentum(q0, v0, p0, t0, prm_dict)
+        if system.m:
+            q0, p0_arr, v0_arr = consistent_initial_state(
+                system, t0, q0, p0_arr, v0_arr, prm, bool(project)
+            )
+            p0_arr, v0_arr = project_momentum(system, t0, q0, p0_arr, v0_arr, prm)
+        elif project:
+            raise ValueError("project=True needs a system with constraints")
 
         n_steps = int(n_steps)
         n_saved = n_steps // save_every + 1 + (1 if n_steps % save_every else 0)
         t_out = np.empty(n_saved)
         q_out = np.empty((n_saved, system.n))
         p_out = np.empty((n_saved, system.n))
+        # angles are saved in [-pi, pi) with the whole turns apart (see kernel_template.save_row)
+        periodic = np.array(system.periodic, dtype=bool)
+        turns_out = np.zeros((n_saved if periodic.any() else 1, system.n))
         # per saved interval, not per step: a 1e7-step run with save_every stores nothing per step
         iterations = np.zeros(-(-n_steps // save_every), dtype=np.uint8)
         iteration_total = np.zeros(1, dtype=np.int64)
         tb = self.method.tables
         args = (q0, p0_arr, v0_arr, t0, h, n_steps, int(save_every), prm)
-        outputs = (t_out, q_out, p_out)
+        outputs = (t_out, q_out, p_out, turns_out)
         path = self.kernel_path
-        if path == "explicit":
+        if path == "constrained" and self.backend == "numba":
+            status, done, saved, worst, increment = self._kernels.constrained_kernel(
+                *args,
+                *(tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation),
+                self.tol,
+                self.maxiter,
+                *outputs,
+                iterations,
+                iteration_total,
+            )
+        elif path == "constrained":
+            status, done, saved, worst, increment = numpy_constrained.integrate(
+                system, tb, *args, self.tol, self.maxiter, *outputs, iterations, iteration_total
+            )
+        elif path == "explicit":
             n = system.n
             mass = system.evaluate("Lvv", t0, q0, np.zeros(n), prm).reshape(n, n)
             if not is_regular(mass):
@@ -315,9 +362,14 @@ class Integrator:
             status, done, saved, worst, increment = numpy_backend.integrate(
                 system, tb, *args, self.tol, self.maxiter, *outputs, iterations, iteration_total
             )
+        q_saved, q_reduced = q_out[:saved], None
+        if periodic.any():
+            q_reduced = q_saved
+            q_saved = numpy_backend.unwrapped(q_saved, turns_out[:saved])
         traj = Trajectory(
             t=t_out[:saved],
-            q=q_out[:saved],
+            q=q_saved,
+            q_reduced=q_reduced,
             p=p_out[:saved],
             newton_iterations=iterations[: -(-(done + (status != 0)) // int(save_every))],
             total_newton_iterations=int(iteration_total[0]),
@@ -362,6 +414,11 @@ class Integrator:
         free control points of step :math:`k`. ``q0`` is at time ``t0``.
         """
         system = self.system
+        if system.m:
+            raise NotImplementedError(
+                "step_del: the position-only DEL form is not available for constrained "
+                "systems; use integrate or step (position-momentum form with multipliers)"
+            )
         qa, qb = self._state("q0", q0), self._state("q1", q1)
         h = self._step_size(h)
         prm = system.parameter_vector(params)

@@ -41,6 +41,9 @@ __all__ = [
 # an increment that stops decreasing within this factor of the tolerance is at the
 # round-off floor of the solve and accepted
 STAGNATION = 100.0
+# an increment below this fraction of the scale moves no bit of q = q_k + X (it is
+# 1/200 of an ulp of |q| ~ scale): as good as zero, whatever the previous one was
+NEGLIGIBLE = 1e-18
 CONTINUE = 0
 CONVERGED = 1
 DIVERGED = 2
@@ -55,7 +58,7 @@ def newton_status(increment, previous, scale, tol, iteration, maxiter):
     """
     if not increment < 1e300:
         return DIVERGED
-    if increment == 0.0:
+    if increment <= NEGLIGIBLE * scale:
         return CONVERGED
     if increment <= tol * scale:
         if increment >= previous:
@@ -208,6 +211,8 @@ def newton_solve(
     x0: NDArray,
     tol: float = 1e-14,
     maxiter: int = 30,
+    watched: int | None = None,
+    base: float = 0.0,
 ) -> NewtonResult:
     r"""Solve :math:`R(x) = 0` by Newton's method with the stagnation stopping rule.
 
@@ -222,6 +227,15 @@ def newton_solve(
         \mathrm{tol}\,(1 + \|x\|_\infty)`; see the module notes.
     maxiter : int
         Iteration cap.
+    watched : int, optional
+        Apply the stopping test to the first ``watched`` unknowns only (all by
+        default). Auxiliary unknowns, such as constraint multipliers whose
+        round-off floor lies above the positions', then converge with them
+        without holding up the test.
+    base : float
+        Size of the point the unknowns are increments from (``max|q_k|``):
+        the scale of the test becomes ``1 + max(base, |x|)``, since far from
+        the origin the round-off floor of the increments is that of ``q``.
     """
     x = np.array(x0, dtype=float)
     previous = np.inf
@@ -234,8 +248,10 @@ def newton_solve(
         except np.linalg.LinAlgError:
             return NewtonResult(x, iteration, np.inf, residual, DIVERGED)
         x = x + dx
-        increment = float(np.max(np.abs(dx), initial=0.0))
-        scale = 1.0 + float(np.max(np.abs(x), initial=0.0))
+        if not np.all(np.isfinite(x)):
+            return NewtonResult(x, iteration, np.inf, residual, DIVERGED)
+        increment = float(np.max(np.abs(dx[:watched]), initial=0.0))
+        scale = 1.0 + float(np.max(np.abs(x[:watched]), initial=base))
         status = newton_status(increment, previous, scale, tol, iteration, maxiter)
         if status != CONTINUE:
             return NewtonResult(x, iteration, increment, residual, status)

@@ -10,6 +10,12 @@ derivatives of the Lagrangian :math:`L(t, q, v)`:
     L_{qq} = \partial_q^2 L,\quad L_{qv} = \partial_q\partial_v L,\quad
     L_{vv} = \partial_v^2 L .
 
+External generalised forces :math:`f(t, q, v)` (discrete Lagrange–d'Alembert)
+enter the stage equations exactly where :math:`L_q` does, so the kernels use the
+*generalised force* :math:`L_q + f` and its derivatives
+:math:`L_{qq} + f_q` and :math:`L_{qv} + f_v`; the transposed coupling
+:math:`L_{vq} = L_{qv}^T` comes from :math:`L` alone.
+
 This module derives them with SymPy (never by finite differences) and reads off
 the structure that lets the kernels skip work.
 """
@@ -21,7 +27,13 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-__all__ = ["PointwisePieces", "Structure", "analyse_structure", "pointwise_pieces"]
+__all__ = [
+    "PointwisePieces",
+    "Structure",
+    "analyse_structure",
+    "periodic_coordinates",
+    "pointwise_pieces",
+]
 
 
 @dataclass(frozen=True)
@@ -35,6 +47,10 @@ class PointwisePieces:
     Lqq, Lqv, Lvv : sympy.ImmutableSparseMatrix, shape (n, n)
         ``Lqv[a, b]`` is :math:`\\partial^2 L / \\partial q_a \\partial v_b`; entries
         that are identically zero are not stored.
+    f : sympy.Matrix, shape (n, 1), or None
+        External generalised forces :math:`f(t, q, v)`; ``None`` without forces.
+    fq, fv : sympy.ImmutableSparseMatrix, shape (n, n), or None
+        :math:`\\partial f_a/\\partial q_b` and :math:`\\partial f_a/\\partial v_b`.
     """
 
     L: sp.Expr
@@ -43,6 +59,19 @@ class PointwisePieces:
     Lqq: sp.MatrixBase
     Lqv: sp.MatrixBase
     Lvv: sp.MatrixBase
+    f: sp.Matrix | None = None
+    fq: sp.MatrixBase | None = None
+    fv: sp.MatrixBase | None = None
+
+    @property
+    def force(self) -> sp.Matrix:
+        r"""Generalised force of the stage equations, :math:`L_q + f`."""
+        return self.Lq if self.f is None else self.Lq + self.f
+
+    @property
+    def force_q(self) -> sp.MatrixBase:
+        r""":math:`\partial(L_q + f)/\partial q = L_{qq} + f_q` (sparse)."""
+        return self.Lqq if self.fq is None else _sparse_sum(self.Lqq, self.fq)
 
 
 @dataclass(frozen=True)
@@ -59,12 +88,17 @@ class Structure:
         :math:`L = \\tfrac12 v^T M(t, q) v + a(t, q)\\cdot v - V(t, q)`.
     constant_mass : bool
         :math:`L_{vv}` depends on parameters at most (constant mass matrix).
+    forced : bool
+        External forces :math:`f` are present.
+    zero_fv : bool
+        :math:`\\partial f/\\partial v \\equiv 0` (also true without forces).
     separable : bool
         :math:`L = \\tfrac12 v^T M v - V(q)` with constant :math:`M` (``zero_Lqv``
         and ``constant_mass``); the setting of Störmer–Verlet.
     quadratic : bool
-        :math:`L` is a polynomial of degree at most two in :math:`(q, v)`, so the
-        stage equations are linear.
+        :math:`L` is a polynomial of degree at most two in :math:`(q, v)` and
+        :math:`f` is affine in :math:`(q, v)` with constant coefficients, so
+        the stage equations are linear.
     """
 
     autonomous: bool
@@ -73,6 +107,8 @@ class Structure:
     constant_mass: bool
     separable: bool
     quadratic: bool
+    forced: bool = False
+    zero_fv: bool = True
 
 
 class _TermDerivatives:
@@ -92,7 +128,10 @@ class _TermDerivatives:
     def __call__(self, term: sp.Expr, wanted: dict[sp.Symbol, int]) -> dict[sp.Symbol, sp.Expr]:
         """``{s: d term / d s}`` for the symbols of ``term`` that are keys of ``wanted``."""
         symbols = sorted(term.free_symbols, key=sp.default_sort_key)
-        placeholders = [sp.Symbol(f"_gvi_x{k}", **s.assumptions0) for k, s in enumerate(symbols)]
+        # coordinates, velocities, time and parameters are real: d|v|/dv = sign(v)
+        placeholders = [
+            sp.Symbol(f"_gvi_x{k}", **_real_assumptions(s)) for k, s in enumerate(symbols)
+        ]
         template = term.xreplace(dict(zip(symbols, placeholders, strict=True)))
         derivatives = self._cache.setdefault(template, {})
         back = dict(zip(placeholders, symbols, strict=True))
@@ -103,6 +142,14 @@ class _TermDerivatives:
                     derivatives[x] = sp.diff(template, x)
                 out[s] = derivatives[x].xreplace(back)
         return out
+
+
+def _real_assumptions(symbol: sp.Symbol) -> dict[str, bool]:
+    """The symbol's assumptions with ``real=True`` added where they allow it."""
+    assumptions = dict(symbol.assumptions0)
+    if symbol.is_real is None:
+        assumptions["real"] = True
+    return assumptions
 
 
 def _gradient(expr: sp.Expr, symbols: list[sp.Symbol], derive: _TermDerivatives) -> sp.Matrix:
@@ -138,8 +185,25 @@ def _jacobian(
     return sp.ImmutableSparseMatrix(len(column), len(symbols), entries)
 
 
-def pointwise_pieces(L: sp.Expr, q: list[sp.Symbol], v: list[sp.Symbol]) -> PointwisePieces:
-    """Differentiate ``L`` once and twice with respect to ``q`` and ``v``.
+def _sparse_sum(a: sp.MatrixBase, b: sp.MatrixBase) -> sp.ImmutableSparseMatrix:
+    """Sum of two sparse matrices, storing only entries that do not cancel."""
+    entries = dict(a.todok())
+    for key, e in b.todok().items():
+        total = entries.get(key, 0) + e
+        if total == 0:
+            entries.pop(key, None)
+        else:
+            entries[key] = total
+    return sp.ImmutableSparseMatrix(a.rows, a.cols, entries)
+
+
+def pointwise_pieces(
+    L: sp.Expr,
+    q: list[sp.Symbol],
+    v: list[sp.Symbol],
+    forces: list[sp.Expr] | None = None,
+) -> PointwisePieces:
+    """Differentiate ``L`` once and twice, and ``forces`` once, by ``q`` and ``v``.
 
     The second derivatives are sparse matrices holding only the entries that
     are not identically zero (a chain of N masses has O(N) of them).
@@ -147,6 +211,11 @@ def pointwise_pieces(L: sp.Expr, q: list[sp.Symbol], v: list[sp.Symbol]) -> Poin
     derive = _TermDerivatives()
     Lq = _gradient(L, q, derive)
     Lv = _gradient(L, v, derive)
+    f = fq = fv = None
+    if forces is not None:
+        f = sp.Matrix(forces)
+        fq = _jacobian(f, q, derive)
+        fv = _jacobian(f, v, derive)
     return PointwisePieces(
         L=L,
         Lq=Lq,
@@ -154,6 +223,9 @@ def pointwise_pieces(L: sp.Expr, q: list[sp.Symbol], v: list[sp.Symbol]) -> Poin
         Lqq=_jacobian(Lq, q, derive),
         Lqv=_jacobian(Lq, v, derive),
         Lvv=_jacobian(Lv, v, derive),
+        f=f,
+        fq=fq,
+        fv=fv,
     )
 
 
@@ -182,13 +254,21 @@ def analyse_structure(
 ) -> Structure:
     """Find the structure flags of :class:`Structure` from the derivatives."""
     qv = set(q) | set(v)
-    autonomous = t is None or t not in pieces.L.free_symbols
+    forced = pieces.f is not None
+    timed = pieces.L.free_symbols | (pieces.f.free_symbols if forced else set())
+    autonomous = t is None or t not in timed
+    zero_fv = not forced or _is_zero_matrix(pieces.fv)
     zero_Lqv = _is_zero_matrix(pieces.Lqv)
     lvv_symbols = set().union(*(e.free_symbols for e in pieces.Lvv.values()))
     quadratic_in_v = not (lvv_symbols & set(v))
     constant_mass = not (lvv_symbols & (qv | ({t} if t is not None else set())))
     hess_symbols = set().union(
-        *(e.free_symbols for m in (pieces.Lqq, pieces.Lqv, pieces.Lvv) for e in m.values())
+        *(
+            e.free_symbols
+            for m in (pieces.Lqq, pieces.Lqv, pieces.Lvv, pieces.fq, pieces.fv)
+            if m is not None
+            for e in m.values()
+        )
     )
     quadratic = not (hess_symbols & (qv | ({t} if t is not None else set())))
     return Structure(
@@ -198,4 +278,30 @@ def analyse_structure(
         constant_mass=constant_mass,
         separable=zero_Lqv and constant_mass,
         quadratic=quadratic,
+        forced=forced,
+        zero_fv=zero_fv,
     )
+
+
+def periodic_coordinates(exprs: list[sp.Expr], q: list[sp.Symbol]) -> tuple[bool, ...]:
+    r"""Which coordinates are angles: every expression is :math:`2\pi`-periodic in them.
+
+    A coordinate counts when it occurs in some expression, and shifting it
+    by :math:`2\pi` leaves every expression unchanged (SymPy removes whole
+    turns from the arguments of sine and cosine). The check is symbolic, after
+    a numeric probe that rejects most non-periodic coordinates cheaply.
+    """
+    rng = random.Random(20261123)
+    out = []
+    for qa in q:
+        relevant = [e for e in exprs if qa in e.free_symbols]
+        periodic = bool(relevant)
+        for e in relevant:
+            difference = e.xreplace({qa: qa + 2 * sp.pi}) - e
+            point = {x: sp.Float(rng.uniform(0.3, 1.7)) for x in difference.free_symbols}
+            value = sp.N(difference.xreplace(point))
+            if not (value.is_Number and abs(value) < 1e-9) or sp.simplify(difference) != 0:
+                periodic = False
+                break
+        out.append(periodic)
+    return tuple(out)

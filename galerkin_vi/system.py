@@ -11,9 +11,16 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 from sympy.core.function import AppliedUndef
 
+from .constraints import ConstraintPieces, constraint_pieces
 from .errors import DegenerateLagrangianError
 from .numeric import FlatEvaluator
-from .symbolic import PointwisePieces, Structure, analyse_structure, pointwise_pieces
+from .symbolic import (
+    PointwisePieces,
+    Structure,
+    analyse_structure,
+    periodic_coordinates,
+    pointwise_pieces,
+)
 
 __all__ = ["LagrangianSystem", "MomentumMap", "is_regular"]
 
@@ -49,14 +56,27 @@ class LagrangianSystem:
     params : mapping of sympy.Symbol to float, optional
         Parameter symbols and their default values. Values can be changed per
         run (``Integrator.integrate(params=...)``) without regenerating code.
+    constraints : sequence of sympy.Expr, optional
+        Holonomic constraints :math:`g_j(t, q) = 0`, expressions in ``q``
+        (optionally ``t`` and parameters). The integrator enforces them
+        exactly at every control point, with multipliers, and projects the
+        momentum onto the hidden constraint :math:`\frac{d}{dt} g = 0` at each
+        step's end (see :mod:`galerkin_vi.constraints`).
+    forces : sequence of sympy.Expr, optional
+        External generalised forces :math:`f_a(t, q, v)`, one per coordinate
+        (damping, actuation), entering by the discrete Lagrange–d'Alembert
+        principle: :math:`\delta\sum_k L_d + \sum_k\sum_\nu F^\nu_k\cdot\delta q^\nu_k = 0`
+        with :math:`F^\nu = h\sum_i b_i \Phi_{i\nu} f(t_i, Q_i, V_i)`.
 
     Raises
     ------
     TypeError
         If ``L`` is not a SymPy expression or the symbols are not SymPy symbols.
     ValueError
-        If ``q`` and ``v`` differ in length, symbols repeat, ``L`` contains
-        undeclared symbols, or a parameter value is not a finite real number.
+        If ``q`` and ``v`` differ in length, symbols repeat, ``L``, a force or a
+        constraint contains undeclared symbols (a constraint may not contain
+        velocities), ``forces`` does not have one entry per coordinate, a
+        constraint is constant, or a parameter value is not a finite real number.
     DegenerateLagrangianError
         If :math:`\partial^2 L/\partial v^2` is singular (checked at random points).
 
@@ -82,6 +102,8 @@ class LagrangianSystem:
         v: Sequence[sp.Symbol],
         t: sp.Symbol | None = None,
         params: Mapping[sp.Symbol, float] | None = None,
+        constraints: Sequence[sp.Expr] | None = None,
+        forces: Sequence[sp.Expr] | None = None,
     ) -> None:
         if isinstance(L, (int, float)) and not isinstance(L, bool):
             L = sp.sympify(L)
@@ -115,7 +137,19 @@ class LagrangianSystem:
             raise ValueError(f"L contains undeclared symbols: {names}{hint}")
         if L.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
             raise ValueError("L contains an infinite or undefined constant")
-        _check_printable(L)
+        _check_printable(L, "L")
+        force_list = _expression_list(
+            "forces", forces, set(declared), "q, v, t and parameters", length=len(q_list)
+        )
+        constraint_list = _expression_list(
+            "constraints", constraints, set(declared) - set(v_list), "q, t and parameters"
+        )
+        for j, g in enumerate(constraint_list or ()):
+            if not (g.free_symbols & set(q_list)):
+                raise ValueError(
+                    f"constraints[{j}] = {g} does not depend on q: it is either always or "
+                    "never satisfied (inconsistent constraints)"
+                )
 
         self.L = L
         self.q = tuple(q_list)
@@ -123,8 +157,14 @@ class LagrangianSystem:
         self.t = t
         self.params = tuple(params)
         self.param_defaults = np.array([float(params[s]) for s in self.params], dtype=float)
-        self.pieces: PointwisePieces = pointwise_pieces(L, q_list, v_list)
+        self.forces = None if force_list is None else tuple(force_list)
+        self.constraints = None if constraint_list is None else tuple(constraint_list)
+        self.pieces: PointwisePieces = pointwise_pieces(L, q_list, v_list, force_list)
         self.structure: Structure = analyse_structure(self.pieces, q_list, v_list, t)
+        #: per coordinate: L, forces and constraints are 2 pi-periodic in it (an angle)
+        self.periodic: tuple[bool, ...] = periodic_coordinates(
+            [L, *(force_list or ()), *(constraint_list or ())], q_list
+        )
         self._check_regular()
 
     # ------------------------------------------------------------------ basics
@@ -151,8 +191,20 @@ class LagrangianSystem:
         """Symbols in the order numeric code receives them: ``t, q, v, params``."""
         return (self.time_symbol, *self.q, *self.v, *self.params)
 
+    @property
+    def m(self) -> int:
+        """Number of holonomic constraints (0 without constraints)."""
+        return 0 if self.constraints is None else len(self.constraints)
+
     def __repr__(self) -> str:
-        return f"LagrangianSystem(L={self.L}, q={list(self.q)}, v={list(self.v)}, t={self.t})"
+        extra = ""
+        if self.constraints is not None:
+            extra += f", constraints={list(self.constraints)}"
+        if self.forces is not None:
+            extra += f", forces={list(self.forces)}"
+        return (
+            f"LagrangianSystem(L={self.L}, q={list(self.q)}, v={list(self.v)}, t={self.t}{extra})"
+        )
 
     def parameter_vector(self, params: Mapping[sp.Symbol | str, float] | None = None) -> NDArray:
         """Parameter values in declaration order, defaults overridden by ``params``."""
@@ -187,9 +239,21 @@ class LagrangianSystem:
             elif name == "Lvv":
                 built = FlatEvaluator.from_blocks([p.Lvv], args)
             elif name == "gradient":
-                built = FlatEvaluator([*p.Lq, *p.Lv], args)
+                built = FlatEvaluator([*p.force, *p.Lv], args)
             elif name == "hessian":
-                built = FlatEvaluator.from_blocks([p.Lq, p.Lv, p.Lqq, p.Lqv, p.Lvv], args)
+                # stage pieces: L_q + f, L_v, L_qq + f_q, L_qv, L_vv (and f_v when nonzero)
+                blocks = [p.force, p.Lv, p.force_q, p.Lqv, p.Lvv]
+                if not self.structure.zero_fv:
+                    blocks.append(p.fv)
+                built = FlatEvaluator.from_blocks(blocks, args)
+            elif name in ("g", "g_q", "g_t", "g_qq"):
+                c = self.constraint_pieces
+                if c is None:
+                    raise KeyError(f"{name!r}: the system has no constraints")
+                blocks = {"g": [c.g], "g_q": [c.jacobian], "g_t": [c.rate], "g_qq": c.hessians}
+                built = FlatEvaluator.from_blocks(blocks[name], args)
+            elif name == "Lvt":
+                built = FlatEvaluator([sp.diff(e, self.time_symbol) for e in p.Lv], args)
             else:
                 raise KeyError(f"unknown piece {name!r}")
             self._evaluators[name] = built
@@ -204,6 +268,36 @@ class LagrangianSystem:
         v = np.asarray(v, dtype=float)
         t = np.asarray(t, dtype=float)
         return self._evaluator(name)(t, *np.moveaxis(q, -1, 0), *np.moveaxis(v, -1, 0), *prm)
+
+    # ----------------------------------------------------------- constraints
+    @cached_property
+    def constraint_pieces(self) -> ConstraintPieces | None:
+        """Symbolic constraint derivatives (None without constraints)."""
+        if self.constraints is None:
+            return None
+        return constraint_pieces(self.constraints, self.q, self.time_symbol)
+
+    def _constraint(self, name: str, q: ArrayLike, t: ArrayLike, prm) -> NDArray:
+        q = np.asarray(q, dtype=float)
+        prm = self.parameter_vector(prm) if prm is None or isinstance(prm, Mapping) else prm
+        return self.evaluate(name, t, q, np.zeros_like(q), np.asarray(prm, dtype=float))
+
+    def constraint_values(self, q: ArrayLike, t: ArrayLike = 0.0, params=None) -> NDArray:
+        """:math:`g(t, q)`, shape (..., m) for ``q`` of shape (..., n)."""
+        return self._constraint("g", q, t, params)
+
+    def constraint_jacobian(self, q: ArrayLike, t: ArrayLike = 0.0, params=None) -> NDArray:
+        r""":math:`\partial g/\partial q`, shape (..., m, n)."""
+        return self._constraint("g_q", q, t, params).reshape(np.shape(q)[:-1] + (self.m, self.n))
+
+    def constraint_rate(self, q: ArrayLike, t: ArrayLike = 0.0, params=None) -> NDArray:
+        r""":math:`\partial g/\partial t`, shape (..., m)."""
+        return self._constraint("g_t", q, t, params)
+
+    def constraint_hessians(self, q: ArrayLike, t: ArrayLike = 0.0, params=None) -> NDArray:
+        r""":math:`\partial^2 g_j/\partial q^2`, shape (..., m, n, n)."""
+        shape = np.shape(q)[:-1] + (self.m, self.n, self.n)
+        return self._constraint("g_qq", q, t, params).reshape(shape)
 
     def _check_regular(self) -> None:
         """Raise if L_vv is singular at every sampled point where it is finite.
@@ -370,20 +464,58 @@ def _solve_rows(m: NDArray, rhs: NDArray) -> NDArray:
         ) from exc
 
 
-def _check_printable(L: sp.Expr) -> None:
+def _expression_list(
+    name: str,
+    exprs: Sequence[sp.Expr] | None,
+    allowed: set[sp.Symbol],
+    allowed_text: str,
+    length: int | None = None,
+) -> list[sp.Expr] | None:
+    """Validate a sequence of SymPy expressions (forces or constraints)."""
+    if exprs is None:
+        return None
+    if isinstance(exprs, sp.Expr):
+        exprs = [exprs]
+    if isinstance(exprs, (str, bytes)) or not isinstance(exprs, Sequence | sp.MatrixBase):
+        raise TypeError(f"{name} must be a sequence of SymPy expressions, got {exprs!r}")
+    out = []
+    for j, e in enumerate(exprs):
+        if isinstance(e, (int, float)) and not isinstance(e, bool):
+            e = sp.sympify(e)
+        if not isinstance(e, sp.Expr):
+            raise TypeError(f"{name}[{j}] must be a SymPy expression, got {type(e).__name__}")
+        undeclared = e.free_symbols - allowed
+        if undeclared:
+            names = ", ".join(sorted(str(s) for s in undeclared))
+            raise ValueError(
+                f"{name}[{j}] contains symbols {names} that it may not depend on "
+                f"(allowed: {allowed_text})"
+            )
+        if e.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
+            raise ValueError(f"{name}[{j}] contains an infinite or undefined constant")
+        _check_printable(e, f"{name}[{j}]")
+        out.append(e)
+    if length is not None and len(out) != length:
+        raise ValueError(f"{name} must have one entry per coordinate ({length}), got {len(out)}")
+    if not out:
+        raise ValueError(f"{name} is empty: pass None for no {name}")
+    return out
+
+
+def _check_printable(expr: sp.Expr, name: str) -> None:
     """Reject functions the code generators cannot print, naming them."""
-    undefined = sorted({str(f) for f in L.atoms(AppliedUndef)})
+    undefined = sorted({str(f) for f in expr.atoms(AppliedUndef)})
     if undefined:
         raise ValueError(
-            f"L contains undefined functions {', '.join(undefined)}: give them as explicit "
+            f"{name} contains undefined functions {', '.join(undefined)}: give them as explicit "
             "SymPy expressions"
         )
     from .codegen import unsupported_functions
 
-    unsupported = unsupported_functions(L)
+    unsupported = unsupported_functions(expr)
     if unsupported:
         raise ValueError(
-            f"L uses functions the code generators cannot compile: {', '.join(unsupported)}"
+            f"{name} uses functions the code generators cannot compile: {', '.join(unsupported)}"
         )
 
 

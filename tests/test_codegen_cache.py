@@ -125,7 +125,7 @@ def test_render_module_is_valid_python_with_the_key_on_first_and_last_line():
     compile(source, "<generated>", "exec")
     lines = source.rstrip("\n").splitlines()
     assert key in lines[0] and key in lines[-1]
-    assert "def point_hessian(t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv):" in source
+    assert "def point_hessian(t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv):" in source
 
 
 def test_rendered_point_functions_compute_the_derivatives():
@@ -137,7 +137,7 @@ def test_rendered_point_functions_compute_the_derivatives():
     q, v = np.array([0.7, -0.4]), np.array([1.3, 0.2])
     Lq, Lv = np.zeros(2), np.zeros(2)
     Lqq, Lqv, Lvv = np.zeros(4), np.zeros(4), np.zeros(4)
-    ns["point_hessian"](0.0, q, v, np.zeros(0), Lq, Lv, Lqq, Lqv, Lvv)
+    ns["point_hessian"](0.0, q, v, np.zeros(0), Lq, Lv, Lqq, Lqv, Lvv, np.zeros(1))
     # flat storage: entry (a, b) at 2 a + b
     Lqq, Lqv, Lvv = Lqq.reshape(2, 2), Lqv.reshape(2, 2), Lvv.reshape(2, 2)
     s, c = np.sin(q[0] - q[1]), np.cos(q[0] - q[1])

@@ -286,3 +286,22 @@ def test_band_lu_pivots_within_the_band():
 )
 def test_band_lu_detects_singular(A):
     assert not band_lu_factor(_to_band(A, 1, 1), np.zeros(4, dtype=np.int64), 1, 1)
+
+
+def test_watched_unknowns_decide_convergence_alone():
+    # x0 converges quadratically to its root; x1 carries noise of size 1e-11 that
+    # never settles: watching x0 only, Newton stops once x0 has converged
+    rng = np.random.default_rng(3)
+
+    def residual_and_jacobian(x):
+        noise = 1e-11 * rng.standard_normal()
+        return np.array([x[0] ** 2 - 2.0, x[1] - 1.0 + noise]), np.array(
+            [[2 * x[0], 0.0], [0.0, 1.0]]
+        )
+
+    watched = newton_solve(residual_and_jacobian, np.array([1.0, 0.0]), watched=1)
+    assert watched.status == CONVERGED
+    assert abs(watched.x[0] - np.sqrt(2.0)) <= 4e-16
+    assert abs(watched.x[1] - 1.0) < 1e-10
+    everything = newton_solve(residual_and_jacobian, np.array([1.0, 0.0]))
+    assert everything.status != CONVERGED

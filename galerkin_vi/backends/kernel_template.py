@@ -15,9 +15,13 @@ quadrature weights :math:`b_i`, tables :math:`\Phi_{i\nu} = \ell_\nu(c_i)` and
 
 .. math::
 
-    G^\nu = \sum_i b_i \big[h\,\Phi_{i\nu} L_q^{(i)} + D_{i\nu} L_v^{(i)}\big],
+    G^\nu = \sum_i b_i \big[h\,\Phi_{i\nu} (L_q + f)^{(i)} + D_{i\nu} L_v^{(i)}\big],
     \qquad R^0 = p_k + G^0,\quad R^\nu = G^\nu\ (1 \le \nu < s),
-    \qquad p_{k+1} = G^s .
+    \qquad p_{k+1} = G^s ,
+
+where :math:`f` are the external forces (discrete Lagrange–d'Alembert; the
+point functions already return :math:`L_q + f` and :math:`L_{qq} + f_q`, and
+:math:`f_v` separately when it is not zero).
 """
 
 # ruff: noqa: N803, N806
@@ -38,11 +42,16 @@ from .pointwise_interface import (
     AUTONOMOUS,
     BAND,
     BANDED,
+    HAS_FV,
     HAS_LQV,
+    HAS_PERIODIC,
     NNZ,
     PATTERN_COL,
     PATTERN_ROW,
     PATTERN_T,
+    PERIODIC,
+    TWO_PI_HI,
+    TWO_PI_LO,
     kernel,
     point_gradient,
     point_hessian,
@@ -99,11 +108,11 @@ def unknown(nu, a, s, n):
 
 
 @kernel
-def add_block(K, nu, mu, s, n, w_vv, Lvv, w_qq, Lqq, w_qv, w_vq, Lqv):
+def add_block(K, nu, mu, s, n, w_vv, Lvv, w_qq, Lqq, w_qv, w_vq, Lqv, Fv):
     r"""Add to block (equation nu, control point mu) of K the point-wise second derivatives.
 
     Block :math:`(\nu, \mu)` gains
-    :math:`w_{vv} L_{vv} + w_{qq} L_{qq} + w_{qv} L_{qv} + w_{vq} L_{qv}^T`,
+    :math:`w_{vv} L_{vv} + w_{qq} (L_{qq} + f_q) + w_{qv} (L_{qv} + f_v) + w_{vq} L_{qv}^T`,
     with the blocks stored flat (``a n + c``, or the pattern position when banded).
     """
     if BANDED:
@@ -116,6 +125,8 @@ def add_block(K, nu, mu, s, n, w_vv, Lvv, w_qq, Lqq, w_qv, w_vq, Lqv):
                 value += w_qq * Lqq[k]
             if HAS_LQV:
                 value += w_qv * Lqv[k] + w_vq * Lqv[PATTERN_T[k]]
+            if HAS_FV:
+                value += w_qv * Fv[k]
             i = a * s + nu
             j = cc * s + mu - 1
             K[2 * kb + i - j, j] += value
@@ -135,6 +146,10 @@ def add_block(K, nu, mu, s, n, w_vv, Lvv, w_qq, Lqq, w_qv, w_vq, Lqv):
         for a in range(n):
             for cc in range(n):
                 K[row0 + a, col0 + cc] += w_qv * Lqv[a * n + cc] + w_vq * Lqv[cc * n + a]
+    if HAS_FV and w_qv != 0.0:
+        for a in range(n):
+            for cc in range(n):
+                K[row0 + a, col0 + cc] += w_qv * Fv[a * n + cc]
 
 
 @kernel
@@ -173,7 +188,7 @@ def assemble_gradient(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G):
 
 
 @kernel
-def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K):
+def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K):
     """G as above and K[(nu, a), (mu, c)] = dG^nu_a / dq^mu_c, nu = 0..s-1, mu = 1..s.
 
     K is stored as :func:`new_jacobian` allocates it, rows and columns placed by
@@ -186,7 +201,7 @@ def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv
     K[:, :] = 0.0
     for i in range(r):
         interpolate(i, h, qk, C, Phi, D, Q, V)
-        point_hessian(0.0 if AUTONOMOUS else t0 + c[i] * h, Q, V, prm, Lq, Lv, Lqq, Lqv, Lvv)
+        point_hessian(0.0 if AUTONOMOUS else t0 + c[i] * h, Q, V, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
         for nu in range(s1):
             wq = b[i] * h * Phi[i, nu]
             wv = b[i] * D[i, nu]
@@ -207,6 +222,7 @@ def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv
                     b[i] * Phi[i, nu] * D[i, mu],
                     b[i] * D[i, nu] * Phi[i, mu],
                     Lqv,
+                    Fv,
                 )
 
 
@@ -221,8 +237,8 @@ def assemble_mass_matrix(t0, h, q0, v0, prm, b, D, work, Kc):
 
     i.e. the stage Jacobian without its :math:`h\,L_{qq}` terms.
     """
-    Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv = work
-    point_hessian(t0, q0, v0, prm, Lq, Lv, Lqq, Lqv, Lvv)
+    Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = work
+    point_hessian(t0, q0, v0, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
     r = b.shape[0]
     s = D.shape[1] - 1
     n = q0.shape[0]
@@ -231,7 +247,7 @@ def assemble_mass_matrix(t0, h, q0, v0, prm, b, D, work, Kc):
         for nu in range(s):
             for mu in range(1, s + 1):
                 w = b[i] * D[i, nu] * D[i, mu] / h
-                add_block(Kc, nu, mu, s, n, w, Lvv, 0.0, Lqq, 0.0, 0.0, Lqv)
+                add_block(Kc, nu, mu, s, n, w, Lvv, 0.0, Lqq, 0.0, 0.0, Lqv, Fv)
 
 
 @kernel
@@ -244,8 +260,8 @@ def first_guess(C, d, h, v0):
 
 
 @kernel
-def advance_position(qk, q_lost, C):
-    """q_{k+1} = q_k + C[s] with compensated (Kahan) summation.
+def advance_position(qk, q_lost, C, turns):
+    """q_{k+1} = q_k + C[s] with compensated (Kahan) summation, angles kept in [-pi, pi).
 
     ``q_lost`` carries the rounding error of each addition into the next one;
     measured over 1e6 Kepler steps (s = 4, h = T/500): max|dH| in the last tenth
@@ -257,6 +273,39 @@ def advance_position(qk, q_lost, C):
         total = qk[a] + y
         q_lost[a] = (total - qk[a]) - y
         qk[a] = total
+    if HAS_PERIODIC:
+        wrap_angles(qk, q_lost, turns)
+
+
+@kernel
+def wrap_angles(qk, q_lost, turns):
+    r"""Translate periodic coordinates (angles) by whole turns into :math:`[-\pi, \pi)`.
+
+    :math:`L`, the forces and the constraints are :math:`2\pi`-periodic in
+    them, so the map commutes with the shift; evaluating them at a small
+    angle keeps the absolute accuracy :math:`\varepsilon`, where an angle of
+    :math:`10^4` would lose :math:`10^4\varepsilon` in every sine. The shift
+    subtracts :math:`2\pi = ` ``TWO_PI_HI + TWO_PI_LO`` exactly (Sterbenz: the
+    high part cancels without rounding, the low part joins ``q_lost``);
+    ``turns`` counts the whole turns removed, for the output.
+    """
+    for a in range(qk.shape[0]):
+        if PERIODIC[a]:
+            if not -np.pi <= qk[a] < np.pi:
+                # many turns at once (a start far out): one rounding of k 2 pi, the
+                # precision of such an angle anyway; one turn (every step) is exact
+                k = np.floor((qk[a] + np.pi) / TWO_PI_HI)
+                qk[a] -= k * TWO_PI_HI
+                q_lost[a] += k * TWO_PI_LO
+                turns[a] += k
+            while qk[a] >= np.pi:
+                qk[a] -= TWO_PI_HI
+                q_lost[a] += TWO_PI_LO
+                turns[a] += 1.0
+            while qk[a] < -np.pi:
+                qk[a] += TWO_PI_HI
+                q_lost[a] -= TWO_PI_LO
+                turns[a] -= 1.0
 
 
 @kernel
@@ -301,7 +350,7 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, Kc, pi
     Returns (status, iterations, last increment, last residual max-norm,
     whether the cheap iteration had to hand over to full Newton).
     """
-    Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv = work
+    Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = work
     s1, n = C.shape
     s = s1 - 1
     previous = np.inf
@@ -309,11 +358,16 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, Kc, pi
     frozen = False
     switched = False
     contraction = min(MASS_CONTRACTION_MAX, MASS_CONTRACTION * s * n)
+    # increments are judged against the size of q = q_k + C: far from the origin the
+    # round-off floor of C is that of q
+    base = 0.0
+    for a in range(n):
+        base = max(base, abs(qk[a]))
     for it in range(1, maxiter + 1):
         if frozen or cheap:
             assemble_gradient(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
         else:
-            assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K)
+            assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K)
         residual = 0.0
         for nu in range(s):
             for a in range(n):
@@ -350,7 +404,7 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, Kc, pi
             switched = True
             previous = np.inf
             continue
-        status = newton_status(increment, previous, 1.0 + size, tol, it, maxiter)
+        status = newton_status(increment, previous, 1.0 + max(size, base), tol, it, maxiter)
         if status == CONVERGED:
             return STATUS_OK, it, increment, residual, switched
         if status != CONTINUE:
@@ -375,7 +429,8 @@ def make_work(s, n):
     K = new_jacobian(s, n)
     R = np.zeros(s * n)
     piv = np.zeros(s * n, dtype=np.int64)
-    return (Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv)
+    Fv = np.zeros(NNZ if HAS_FV else 1)
+    return (Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv)
 
 
 @kernel
@@ -408,6 +463,7 @@ def integrate_kernel(
     t_out,
     q_out,
     p_out,
+    turns_out,
     iterations_out,
     iteration_total,
 ):
@@ -425,6 +481,7 @@ def integrate_kernel(
     Returns (status, steps completed, rows saved, max residual, failing increment).
     """
     n = q0.shape[0]
+    out = (t_out, q_out, p_out, turns_out)
     s1 = d.shape[0]
     s = s1 - 1
     work = make_work(s, n)
@@ -439,9 +496,12 @@ def integrate_kernel(
     C_prev = np.zeros((s1, n))
     qk = q0.copy()
     q_lost = np.zeros(n)  # compensated summation: low-order bits of q lost so far
+    turns = np.zeros(n)  # whole turns removed from periodic coordinates
+    if HAS_PERIODIC:
+        wrap_angles(qk, q_lost, turns)
     pk = p0.copy()
     first_guess(C, d, h, v0)
-    saved = save_row(0, t0, qk, pk, t_out, q_out, p_out)
+    saved = save_row(0, t0, qk, q_lost, turns, pk, out)
     worst = 0.0
     for k in range(n_steps):
         tk = t0 + k * h
@@ -468,30 +528,42 @@ def integrate_kernel(
                     status = STATUS_NONFINITE
         if status != STATUS_OK:
             if k % save_every != 0:  # keep the last good state, even if not due for saving
-                saved = save_row(saved, tk, qk, pk, t_out, q_out, p_out)
+                saved = save_row(saved, tk, qk, q_lost, turns, pk, out)
             return status, k, saved, worst, increment
         if residual > worst:
             worst = residual
         for a in range(n):
             pk[a] = G[s, a]
-        advance_position(qk, q_lost, C)
+        advance_position(qk, q_lost, C, turns)
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
-            saved = save_row(saved, t0 + (k + 1) * h, qk, pk, t_out, q_out, p_out)
+            saved = save_row(saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, out)
     return STATUS_OK, n_steps, saved, worst, 0.0
 
 
 @kernel
-def save_row(saved, t, qk, pk, t_out, q_out, p_out):
-    """Store (t, q, p) in row ``saved`` of the outputs and return the next free row."""
+def save_row(saved, t, qk, q_lost, turns, pk, out):
+    r"""Store (t, q, p) in row ``saved`` of ``out = (t, q, p, turns)``; return the next row.
+
+    With periodic coordinates the state is saved as it is kept, in
+    :math:`[-\pi, \pi)` with its compensation ``q_lost`` applied, and the whole
+    turns removed so far go to the fourth output (the caller adds them back:
+    saving the continuous angle itself would round it to the precision of its
+    size).
+    """
+    t_out, q_out, p_out, turns_out = out
     t_out[saved] = t
     for a in range(qk.shape[0]):
-        q_out[saved, a] = qk[a]
+        if HAS_PERIODIC and PERIODIC[a]:
+            q_out[saved, a] = qk[a] - q_lost[a]
+            turns_out[saved, a] = turns[a]
+        else:
+            q_out[saved, a] = qk[a]
         p_out[saved, a] = pk[a]
     return saved + 1
 
 
 @kernel
-def verlet_kernel(q0, p0, t0, h, n_steps, save_every, prm, Minv, t_out, q_out, p_out):
+def verlet_kernel(q0, p0, t0, h, n_steps, save_every, prm, Minv, t_out, q_out, p_out, turns_out):
     r"""Degree 1, two Lobatto points, separable :math:`L = \tfrac12 v^TMv + a(t)\cdot v - V(t, q)`.
 
     The stage equation is linear in :math:`q_{k+1}` and solved in closed form
@@ -507,7 +579,12 @@ def verlet_kernel(q0, p0, t0, h, n_steps, save_every, prm, Minv, t_out, q_out, p
     Returns (status, steps completed, rows saved).
     """
     n = q0.shape[0]
+    out = (t_out, q_out, p_out, turns_out)
     qk = q0.copy()
+    q_lost = np.zeros(n)
+    turns = np.zeros(n)
+    if HAS_PERIODIC:
+        wrap_angles(qk, q_lost, turns)
     pk = p0.copy()
     zero = np.zeros(n)
     lq = np.zeros(n)
@@ -515,7 +592,7 @@ def verlet_kernel(q0, p0, t0, h, n_steps, save_every, prm, Minv, t_out, q_out, p
     a0 = np.zeros(n)
     a1 = np.zeros(n)
     rhs = np.zeros(n)
-    saved = save_row(0, t0, qk, pk, t_out, q_out, p_out)
+    saved = save_row(0, t0, qk, q_lost, turns, pk, out)
     point_gradient(t0, qk, zero, prm, lq, a0)
     point_gradient(t0, qk, zero, prm, lq_next, a1)
     for k in range(n_steps):
@@ -530,7 +607,16 @@ def verlet_kernel(q0, p0, t0, h, n_steps, save_every, prm, Minv, t_out, q_out, p
             acc = 0.0
             for b in range(n):
                 acc += Minv[a, b] * rhs[b]
-            qk[a] += h * acc
+            if HAS_PERIODIC:
+                # compensated, so that whole turns can be removed exactly
+                y = h * acc - q_lost[a]
+                total = qk[a] + y
+                q_lost[a] = (total - qk[a]) - y
+                qk[a] = total
+            else:
+                qk[a] += h * acc
+        if HAS_PERIODIC:
+            wrap_angles(qk, q_lost, turns)
         point_gradient(tk1, qk, zero, prm, lq_next, a1)
         finite = True
         for a in range(n):
@@ -541,7 +627,7 @@ def verlet_kernel(q0, p0, t0, h, n_steps, save_every, prm, Minv, t_out, q_out, p
         if not finite:
             return STATUS_NONFINITE, k, saved
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
-            saved = save_row(saved, tk1, qk, pk, t_out, q_out, p_out)
+            saved = save_row(saved, tk1, qk, q_lost, turns, pk, out)
     return STATUS_OK, n_steps, saved
 
 
@@ -564,6 +650,7 @@ def linear_kernel(
     t_out,
     q_out,
     p_out,
+    turns_out,
 ):
     """Quadratic L: the stage equations are linear with a constant matrix.
 
@@ -572,20 +659,24 @@ def linear_kernel(
     exact up to round-off. Returns (status, steps completed, rows saved).
     """
     n = q0.shape[0]
+    out = (t_out, q_out, p_out, turns_out)
     s1 = d.shape[0]
     s = s1 - 1
     work = make_work(s, n)
-    Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv = work
+    Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = work
     C = np.zeros((s1, n))
     C_prev = np.zeros((s1, n))
     qk = q0.copy()
     q_lost = np.zeros(n)
+    turns = np.zeros(n)
+    if HAS_PERIODIC:
+        wrap_angles(qk, q_lost, turns)
     pk = p0.copy()
     first_guess(C, d, h, v0)
-    assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K)
+    assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K)
     if not factor_jacobian(K, piv, s):
-        return STATUS_SINGULAR, 0, save_row(0, t0, qk, pk, t_out, q_out, p_out)
-    saved = save_row(0, t0, qk, pk, t_out, q_out, p_out)
+        return STATUS_SINGULAR, 0, save_row(0, t0, qk, q_lost, turns, pk, out)
+    saved = save_row(0, t0, qk, q_lost, turns, pk, out)
     for k in range(n_steps):
         tk = t0 + k * h
         if k > 0:
@@ -604,9 +695,9 @@ def linear_kernel(
             pk[a] = G[s, a]
             if not abs(pk[a]) < 1e300 or not abs(C[s, a]) < 1e300:
                 finite = False
-        advance_position(qk, q_lost, C)
+        advance_position(qk, q_lost, C, turns)
         if not finite:
             return STATUS_NONFINITE, k, saved
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
-            saved = save_row(saved, t0 + (k + 1) * h, qk, pk, t_out, q_out, p_out)
+            saved = save_row(saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, out)
     return STATUS_OK, n_steps, saved

@@ -36,6 +36,11 @@ class MpIntegrator:
     """
 
     def __init__(self, system: LagrangianSystem, method: Galerkin, dps: int = 32) -> None:
+        if system.m:
+            raise NotImplementedError(
+                "the mpmath backend does not support constraints; measure constrained "
+                "orders in float64 (dps=None)"
+            )
         self.system = system
         self.method = method
         self.dps = int(dps)
@@ -44,10 +49,15 @@ class MpIntegrator:
         args = list(system.arguments)
         n = system.n
         self._n = n
+        # generalised force L_q + f and its q-derivative; f_v joins the (q, v) block row
+        Lqv_row = p.Lqv.as_mutable() + (p.fv if p.fv is not None else sp.zeros(n, n))
         self._hessian: Callable = sp.lambdify(
-            args, [*p.Lq, *p.Lv, *p.Lqq, *p.Lqv, *p.Lvv], modules="mpmath", cse=True
+            args,
+            [*p.force, *p.Lv, *p.force_q.as_mutable(), *p.Lqv, *p.Lvv, *Lqv_row],
+            modules="mpmath",
+            cse=True,
         )
-        self._gradient: Callable = sp.lambdify(args, [*p.Lq, *p.Lv], modules="mpmath", cse=True)
+        self._gradient: Callable = sp.lambdify(args, [*p.force, *p.Lv], modules="mpmath", cse=True)
         self._legendre: Callable = sp.lambdify(args, list(p.Lv), modules="mpmath", cse=True)
 
     def _points(self, t0, h, qk, C):
@@ -84,8 +94,8 @@ class MpIntegrator:
         for i, (t, Q, V) in enumerate(self._points(t0, h, qk, C)):
             vals = self._hessian(t, *Q, *V, *prm)
             Lq, Lv = vals[:n], vals[n : 2 * n]
-            block = [vals[2 * n + k * n * n : 2 * n + (k + 1) * n * n] for k in range(3)]
-            Lqq, Lqv, Lvv = block
+            block = [vals[2 * n + k * n * n : 2 * n + (k + 1) * n * n] for k in range(4)]
+            Lqq, Lqv, Lvv, Lqv_row = block
             bi, Phi, D = tb.b[i], tb.Phi[i], tb.D[i]
             for nu in range(s1):
                 for a in range(n):
@@ -100,7 +110,7 @@ class MpIntegrator:
                         for c in range(n):
                             K[nu * n + a, (mu - 1) * n + c] += (
                                 w_qq * Lqq[a * n + c]
-                                + w_qv * Lqv[a * n + c]
+                                + w_qv * Lqv_row[a * n + c]
                                 + w_vq * Lqv[c * n + a]
                                 + w_vv * Lvv[a * n + c]
                             )

@@ -14,7 +14,15 @@ from ..method import MethodTables
 from ..newton import CONVERGED, NewtonResult, newton_solve
 from ..system import LagrangianSystem
 
-__all__ = ["discrete_gradient", "discrete_hessian", "integrate", "solve_step"]
+__all__ = [
+    "discrete_gradient",
+    "discrete_hessian",
+    "integrate",
+    "solve_step",
+    "save_row",
+    "unwrapped",
+    "wrap_angles",
+]
 
 
 def _points(tables: MethodTables, t0: float, h: float, qk: NDArray, C: NDArray):
@@ -34,7 +42,9 @@ def discrete_gradient(
     C: NDArray,
     prm: NDArray,
 ) -> NDArray:
-    r""":math:`G^\nu = \partial L_d/\partial q^\nu` at :math:`q^\nu = q_k + C^\nu`.
+    r""":math:`G^\nu + F^\nu` at :math:`q^\nu = q_k + C^\nu`.
+
+    :math:`G^\nu = \partial L_d/\partial q^\nu` plus the nodal forces :math:`F^\nu`.
 
     Returns shape (s + 1, n).
 
@@ -65,14 +75,18 @@ def discrete_hessian(
     t, Q, V = _points(tables, t0, h, qk, C)
     values = system.evaluate("hessian", t, Q, V, prm)
     Lq, Lv = values[:, :n], values[:, n : 2 * n]
-    Lqq, Lqv, Lvv = (
-        values[:, 2 * n + k * n * n : 2 * n + (k + 1) * n * n].reshape(-1, n, n) for k in range(3)
+    # Lq and Lqq include the forces (L_q + f, L_qq + f_q); f_v follows when nonzero
+    blocks = (values.shape[1] - 2 * n) // (n * n)
+    Lqq, Lqv, Lvv, *fv = (
+        values[:, 2 * n + k * n * n : 2 * n + (k + 1) * n * n].reshape(-1, n, n)
+        for k in range(blocks)
     )
+    Lqv_row = Lqv + fv[0] if fv else Lqv
     b, Phi, D = tables.b, tables.Phi, tables.D
     G = h * Phi.T @ (b[:, None] * Lq) + D.T @ (b[:, None] * Lv)
     H = (
         h * np.einsum("i,iv,iu,iac->vauc", b, Phi, Phi, Lqq)
-        + np.einsum("i,iv,iu,iac->vauc", b, Phi, D, Lqv)
+        + np.einsum("i,iv,iu,iac->vauc", b, Phi, D, Lqv_row)
         + np.einsum("i,iv,iu,ica->vauc", b, D, Phi, Lqv)
         + np.einsum("i,iv,iu,iac->vauc", b, D, D, Lvv) / h
     )
@@ -107,7 +121,13 @@ def solve_step(
         K = H[:s, :, 1:, :].reshape(s * n, s * n)
         return R.ravel(), K
 
-    result = newton_solve(residual_and_jacobian, guess[1:].ravel(), tol=tol, maxiter=maxiter)
+    result = newton_solve(
+        residual_and_jacobian,
+        guess[1:].ravel(),
+        tol=tol,
+        maxiter=maxiter,
+        base=float(np.max(np.abs(qk))),
+    )
     return np.vstack([zero, result.x.reshape(s, n)]), result
 
 
@@ -127,6 +147,7 @@ def integrate(
     t_out: NDArray,
     q_out: NDArray,
     p_out: NDArray,
+    turns_out: NDArray,
     iterations_out: NDArray,
     iteration_total: NDArray,
 ) -> tuple[int, int, int, float, float]:
@@ -136,7 +157,11 @@ def integrate(
     C = d[:, None] * h * v0[None, :]
     qk, pk = q0.copy(), p0.copy()
     q_lost = np.zeros_like(q0)
-    t_out[0], q_out[0], p_out[0] = t0, q0, p0
+    turns = np.zeros_like(q0)
+    periodic = np.array(system.periodic, dtype=bool)
+    wrap_angles(periodic, qk, q_lost, turns)
+    outputs = (t_out, q_out, p_out, turns_out)
+    save_row(0, t0, qk, q_lost, turns, pk, periodic, *outputs)
     saved, worst = 1, 0.0
     for k in range(n_steps):
         tk = t0 + k * h
@@ -154,7 +179,7 @@ def integrate(
             status = 0 if np.all(np.isfinite(p_next)) else 3
         if status != 0:
             if k % save_every != 0:  # keep the last good state, even if not due for saving
-                t_out[saved], q_out[saved], p_out[saved] = tk, qk, pk
+                save_row(saved, tk, qk, q_lost, turns, pk, periodic, *outputs)
                 saved += 1
             return status, k, saved, worst, result.increment
         worst = max(worst, result.residual)
@@ -163,8 +188,45 @@ def integrate(
         total = qk + y
         q_lost = (total - qk) - y
         qk, pk = total, p_next
+        wrap_angles(periodic, qk, q_lost, turns)
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
-            t_out[saved] = t0 + (k + 1) * h
-            q_out[saved], p_out[saved] = qk, pk
+            save_row(saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, periodic, *outputs)
             saved += 1
     return 0, n_steps, saved, worst, 0.0
+
+
+# 2 pi = TWO_PI_HI + TWO_PI_LO, both floats
+TWO_PI_HI = 6.283185307179586
+TWO_PI_LO = 2.4492935982947064e-16
+
+
+def wrap_angles(periodic: NDArray, qk: NDArray, q_lost: NDArray, turns: NDArray) -> None:
+    """Move periodic coordinates into [-pi, pi) by whole turns, in place (see the kernel)."""
+    for a in np.flatnonzero(periodic):
+        if not -np.pi <= qk[a] < np.pi:
+            k = np.floor((qk[a] + np.pi) / TWO_PI_HI)
+            qk[a] -= k * TWO_PI_HI
+            q_lost[a] += k * TWO_PI_LO
+            turns[a] += k
+        while qk[a] >= np.pi:
+            qk[a] -= TWO_PI_HI
+            q_lost[a] += TWO_PI_LO
+            turns[a] += 1.0
+        while qk[a] < -np.pi:
+            qk[a] += TWO_PI_HI
+            q_lost[a] -= TWO_PI_LO
+            turns[a] -= 1.0
+
+
+def save_row(saved, t, qk, q_lost, turns, pk, periodic, t_out, q_out, p_out, turns_out) -> None:
+    """Row ``saved`` of the outputs, as the compiled ``save_row`` writes it."""
+    t_out[saved] = t
+    q_out[saved] = np.where(periodic, qk - q_lost, qk)
+    p_out[saved] = pk
+    if periodic.any():
+        turns_out[saved] = turns
+
+
+def unwrapped(q: NDArray, turns: NDArray) -> NDArray:
+    """Continuous angles from saved states in [-pi, pi) and the whole turns removed."""
+    return (q + turns * TWO_PI_HI) + turns * TWO_PI_LO
