@@ -7,6 +7,7 @@ from .errors import (
     ConditioningWarning,
     ConvergenceError,
     DegenerateLagrangianError,
+    InstabilityWarning,
     OrderReductionWarning,
 )
 from .integrator import Integrator
@@ -21,6 +22,7 @@ __all__ = [
     "ConvergenceError",
     "DegenerateLagrangianError",
     "Galerkin",
+    "InstabilityWarning",
     "Integrator",
     "LagrangianSystem",
     "MethodChoice",

@@ -11,6 +11,7 @@ __all__ = [
     "ConditioningWarning",
     "ConvergenceError",
     "DegenerateLagrangianError",
+    "InstabilityWarning",
     "OrderReductionWarning",
 ]
 
@@ -66,3 +67,13 @@ class OrderReductionWarning(UserWarning):
 
 class ConditioningWarning(UserWarning):
     """A choice that is known to make the stage equations ill-conditioned."""
+
+
+class InstabilityWarning(RuntimeWarning):
+    r"""The momenta grew by orders of magnitude during a run.
+
+    The usual cause is a step size past the method's linear stability limit
+    (for Störmer–Verlet :math:`h\omega < 2`), where the discrete solution
+    grows exponentially. Runs that overflow raise :class:`ConvergenceError`
+    instead; NaN is never returned silently.
+    """

@@ -3,7 +3,9 @@ r"""The integrator: a system, a method and a backend, run over many steps."""
 from __future__ import annotations
 
 import numbers
-from collections.abc import Mapping
+import warnings
+from collections.abc import Iterator, Mapping
+from dataclasses import replace
 from functools import cached_property
 
 import numpy as np
@@ -15,7 +17,7 @@ from .backends import numpy as numpy_backend
 from .backends import numpy_constrained, resolve_backend
 from .backends.numba import load_kernels
 from .constraints import consistent_initial_state, project_momentum
-from .errors import ConvergenceError, DegenerateLagrangianError
+from .errors import ConvergenceError, DegenerateLagrangianError, InstabilityWarning
 from .method import Galerkin
 from .newton import CONVERGED, newton_solve
 from .system import LagrangianSystem, is_regular
@@ -23,6 +25,8 @@ from .trajectory import Trajectory
 
 __all__ = ["Integrator"]
 
+# momenta that grow by more than this factor over a run signal an unstable step size
+INSTABILITY_GROWTH = 1e6
 # below this many stage unknowns the constant-mass iteration does not pay (measured)
 MIN_UNKNOWNS_CONSTANT_MASS = 6
 
@@ -389,7 +393,91 @@ class Integrator:
                 residual=float(increment),
                 partial=traj,
             )
+        _warn_if_unstable(traj, p0_arr, h)
         return traj
+
+    def stream(
+        self,
+        q0: ArrayLike,
+        v0: ArrayLike | None = None,
+        p0: ArrayLike | None = None,
+        *,
+        h: float,
+        n_steps: int,
+        chunk_steps: int = 100_000,
+        t0: float = 0.0,
+        params: Mapping[sp.Symbol | str, float] | None = None,
+        save_every: int = 1,
+        project: bool = False,
+    ) -> Iterator[Trajectory]:
+        """:meth:`integrate` in chunks of ``chunk_steps`` steps, yielding each chunk.
+
+        Memory stays bounded by one chunk however long the run: process each
+        chunk (energy, plots, a file) and drop it. The first chunk starts with
+        the initial state; every later chunk starts after its first step, so
+        that the chunks together hold exactly the rows one :meth:`integrate`
+        call would save. Each chunk continues from the state the previous one
+        ended in (angles from their reduced value, ``Trajectory.q_reduced``),
+        so the result equals one long run up to round-off at the joins.
+
+        Parameters
+        ----------
+        chunk_steps : int
+            Steps per chunk, a positive multiple of ``save_every``.
+        Other parameters
+            As for :meth:`integrate`.
+
+        Raises
+        ------
+        ConvergenceError
+            As :meth:`integrate`; ``.partial`` holds the failing chunk's states
+            (earlier chunks were already yielded).
+        """
+        if (
+            isinstance(chunk_steps, bool)
+            or not isinstance(chunk_steps, numbers.Integral)
+            or chunk_steps < 1
+        ):
+            raise ValueError(f"chunk_steps must be a positive int, got {chunk_steps!r}")
+        if not isinstance(save_every, numbers.Integral) or save_every < 1:
+            raise ValueError(f"save_every must be a positive int, got {save_every!r}")
+        if chunk_steps % save_every:
+            raise ValueError(
+                f"chunk_steps ({chunk_steps}) must be a multiple of save_every ({save_every}) "
+                "for the chunks to save the rows one run would"
+            )
+        if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 0:
+            raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
+        done = 0
+        offset = None  # whole turns of the angles, added back to later chunks' q
+        start = {"v0": v0, "p0": p0}
+        q_start: ArrayLike = q0
+        t_start = float(t0)
+        first = True
+        while first or done < n_steps:
+            steps = min(int(chunk_steps), int(n_steps) - done)
+            chunk = self.integrate(
+                q_start,
+                **start,
+                h=h,
+                n_steps=steps,
+                t0=t_start,
+                params=params,
+                save_every=save_every,
+                project=project and first,
+            )
+            if offset is not None:
+                chunk = replace(chunk, q=chunk.q + offset)
+            yield chunk if first else _without_first_row(chunk)
+            done += steps
+            first = False
+            if chunk.q_reduced is not None:
+                q_start = chunk.q_reduced[-1]
+                offset = chunk.q[-1] - chunk.q_reduced[-1]
+            else:
+                q_start = chunk.q[-1]
+            start = {"v0": None, "p0": chunk.p[-1]}
+            t_start = float(t0) + done * h  # not chunk.t[-1]: no rounding accumulates
 
     def step(
         self, q0: ArrayLike, p0: ArrayLike, h: float, t0: float = 0.0, params=None
@@ -456,3 +544,28 @@ class Integrator:
                 residual=result.increment,
             )
         return qb + result.x[-n:]
+
+
+def _warn_if_unstable(traj: Trajectory, p0: NDArray, h: float) -> None:
+    """Warn when the momenta grew by more than ``INSTABILITY_GROWTH`` over the run."""
+    scale = 1.0 + float(np.max(np.abs(p0), initial=0.0))
+    largest = float(np.max(np.abs(traj.p), initial=0.0))
+    if largest > INSTABILITY_GROWTH * scale:
+        warnings.warn(
+            f"the momenta grew from {scale - 1:.3g} to {largest:.3g} over the run: h = {h:.3g} "
+            "is probably past the method's stability limit (the discrete solution grows "
+            "exponentially); use a smaller h",
+            InstabilityWarning,
+            stacklevel=3,
+        )
+
+
+def _without_first_row(traj: Trajectory) -> Trajectory:
+    """The trajectory minus its first saved row (a chunk's start, the previous chunk's end)."""
+    return replace(
+        traj,
+        t=traj.t[1:],
+        q=traj.q[1:],
+        p=traj.p[1:],
+        q_reduced=None if traj.q_reduced is None else traj.q_reduced[1:],
+    )
