@@ -248,6 +248,22 @@ class _KernelPrinter(PythonCodePrinter):
     def _print_Symbol(self, expr: sp.Symbol) -> str:
         return expr.name
 
+    def _print_Integer(self, expr: sp.Integer) -> str:
+        # numba cannot type an integer literal beyond 64 bits ((2/3)**100 is exact in SymPy)
+        return str(expr.p) if abs(expr.p) < 2**63 else repr(float(expr))
+
+    def _print_Rational(self, expr: sp.Rational) -> str:
+        if max(abs(expr.p), expr.q) < 2**63:
+            return f"{expr.p}/{expr.q}"
+        return repr(float(expr))
+
+    def _print_Piecewise(self, expr: sp.Piecewise) -> str:
+        # without an otherwise branch Python's printer ends in "else None", which numba
+        # cannot type: undefined is NaN, as in the NumPy evaluator (a ConvergenceError)
+        if expr.args[-1].cond != sp.true:
+            expr = sp.Piecewise(*expr.args, (sp.nan, True), evaluate=False)
+        return super()._print_Piecewise(expr)
+
     def _print_Pow(self, expr: sp.Pow, rational: bool = False) -> str:
         # half-integer powers (gravity, r**(-3/2)) as sqrt and integer powers:
         # a call to pow costs several times a sqrt and a few multiplications
@@ -263,14 +279,23 @@ class _KernelPrinter(PythonCodePrinter):
         return super()._print_Pow(expr, rational=rational)
 
 
-def unsupported_functions(expr: sp.Expr) -> list[str]:
-    """Names of the functions in ``expr`` that the kernel printer cannot print."""
+# operations SymPy leaves unevaluated (an integral without a closed form, the
+# derivative of floor): no printer evaluates them
+_UNEVALUATED = (sp.Derivative, sp.Integral, sp.Subs, sp.Product, sp.Limit, sp.Order)
+
+
+def unsupported_functions(expr: sp.Basic) -> list[str]:
+    """Names of the functions (and unevaluated operations) in ``expr`` that the kernel
+    printer cannot print."""
     printer = _KernelPrinter()
     names = set()
-    for f in expr.atoms(sp.Function):
+    for f in expr.atoms(sp.Function, *_UNEVALUATED):
+        if isinstance(f, _UNEVALUATED):
+            names.add(type(f).__name__)
+            continue
         try:
             printer.doprint(f)
-        except (NotImplementedError, TypeError):
+        except (NotImplementedError, TypeError, ValueError):
             names.add(type(f).__name__)
     return sorted(names)
 

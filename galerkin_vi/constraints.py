@@ -125,8 +125,9 @@ def _check_rank(system: LagrangianSystem, t: float, q: NDArray, prm: NDArray) ->
 
 
 def _project_position(system: LagrangianSystem, t: float, q: NDArray, prm: NDArray) -> NDArray:
-    r"""The nearest point of :math:`g(t, \cdot) = 0` by Gauss–Newton,
-    :math:`q \leftarrow q - \mathcal G^T(\mathcal G\mathcal G^T)^{-1} g(q)`."""
+    r"""A nearby point of :math:`g(t, \cdot) = 0` by Gauss–Newton with minimum-norm
+    corrections, :math:`q \leftarrow q - \mathcal G^T(\mathcal G\mathcal G^T)^{-1} g(q)`
+    (the nearest point up to the curvature of the manifold)."""
     scale = 1.0 + np.abs(q).max()
     for _ in range(_PROJECTION_MAXITER):
         g = system.constraint_values(q, t, prm)
@@ -154,6 +155,12 @@ def project_momentum(
 
     Returns :math:`(p - \mathcal G^T\mu, v)` with :math:`v` the velocity of the
     projected momentum; ``v`` on entry is the Newton starting guess.
+
+    Raises
+    ------
+    ValueError
+        If the saddle-point system is singular (:math:`L_{vv}` or the
+        constraint Jacobian degenerate at ``q``) or Newton does not converge.
     """
     n, m = system.n, system.m
     jac = system.constraint_jacobian(q, t, prm)
@@ -164,11 +171,19 @@ def project_momentum(
         lvv = system.evaluate("Lvv", t, q, v, prm).reshape(n, n)
         r = np.concatenate([lv + jac.T @ mu - p, jac @ v + rate])
         a = np.block([[lvv, jac.T], [jac, np.zeros((m, m))]])
-        dx = np.linalg.solve(a, -r)
+        try:
+            dx = np.linalg.solve(a, -r)
+        except np.linalg.LinAlgError as exc:
+            raise ValueError(
+                f"hidden-constraint projection: singular saddle-point matrix at q = {q} "
+                "(degenerate L_vv or constraint Jacobian)"
+            ) from exc
         v, mu = v + dx[:n], mu + dx[n:]
-        if np.abs(dx).max() <= 1e-15 * (1.0 + np.abs(v).max() + np.abs(mu).max()):
+        if not np.all(np.isfinite(dx)):
             break
-    return p - jac.T @ mu, v
+        if np.abs(dx).max() <= 1e-15 * (1.0 + np.abs(v).max() + np.abs(mu).max()):
+            return p - jac.T @ mu, v
+    raise ValueError(f"hidden-constraint projection did not converge at q = {q}")
 
 
 def consistent_initial_state(

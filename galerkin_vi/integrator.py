@@ -257,11 +257,12 @@ class Integrator:
         save_every : int
             Save every ``save_every``-th state (and always the last).
         project : bool
-            Constrained systems only: move ``q0`` to the nearest point of the
-            constraint manifold and the momentum onto the hidden constraint.
-            Without it, initial data that violate either by more than
-            :data:`galerkin_vi.constraints.INITIAL_TOLERANCE` are rejected
-            (data within it are projected silently).
+            Constrained systems only: move ``q0`` to a nearby point of the
+            constraint manifold (Gauss–Newton) and the momentum onto the
+            hidden constraint. Without it, initial data that violate either by
+            more than :data:`galerkin_vi.constraints.INITIAL_TOLERANCE` are
+            rejected; within it, ``q0`` is kept and only the momentum is
+            projected (exactly, a change of the size of the violation).
 
         Returns
         -------
@@ -275,6 +276,14 @@ class Integrator:
         ValueError
             For bad arguments, and for constrained systems when the initial data
             are inconsistent (see ``project``) or the constraints are redundant.
+
+        Warns
+        -----
+        InstabilityWarning
+            When the momenta over the last tenth of the saved states exceed
+            those over the first tenth by more than ``INSTABILITY_GROWTH``
+            (``1e6``; at least 10 saved states, autonomous unforced systems):
+            the exponential growth of a step size past the stability limit.
         """
         system = self.system
         q0 = self._state("q0", q0)
@@ -393,7 +402,7 @@ class Integrator:
                 residual=float(increment),
                 partial=traj,
             )
-        _warn_if_unstable(traj, p0_arr, h)
+        _warn_if_unstable(traj, h)
         return traj
 
     def stream(
@@ -418,7 +427,11 @@ class Integrator:
         that the chunks together hold exactly the rows one :meth:`integrate`
         call would save. Each chunk continues from the state the previous one
         ended in (angles from their reduced value, ``Trajectory.q_reduced``),
-        so the result equals one long run up to round-off at the joins.
+        so the result equals one long run up to round-off at the joins (each
+        chunk starts Newton afresh, from a linear guess instead of the previous
+        step's polynomial, and without the compensation bits of the summed
+        positions: near the edge of convergence a chunked run may fail at a
+        slightly different step than one run).
 
         Parameters
         ----------
@@ -430,9 +443,13 @@ class Integrator:
         Raises
         ------
         ConvergenceError
-            As :meth:`integrate`; ``.partial`` holds the failing chunk's states
-            (earlier chunks were already yielded).
+            As :meth:`integrate`, with ``.step`` counted from the start of the
+            run; ``.partial`` holds the failing chunk's states after the last
+            yielded one (earlier chunks were already yielded).
+        ValueError
+            For bad arguments, when ``stream`` is called.
         """
+        # validated here, when stream() is called, not at the first next()
         if (
             isinstance(chunk_steps, bool)
             or not isinstance(chunk_steps, numbers.Integral)
@@ -448,6 +465,13 @@ class Integrator:
             )
         if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 0:
             raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
+        return self._chunks(
+            q0, v0, p0, h, int(n_steps), int(chunk_steps), t0, params, save_every, project
+        )
+
+    def _chunks(
+        self, q0, v0, p0, h, n_steps, chunk_steps, t0, params, save_every, project
+    ) -> Iterator[Trajectory]:
         done = 0
         offset = None  # whole turns of the angles, added back to later chunks' q
         start = {"v0": v0, "p0": p0}
@@ -455,17 +479,27 @@ class Integrator:
         t_start = float(t0)
         first = True
         while first or done < n_steps:
-            steps = min(int(chunk_steps), int(n_steps) - done)
-            chunk = self.integrate(
-                q_start,
-                **start,
-                h=h,
-                n_steps=steps,
-                t0=t_start,
-                params=params,
-                save_every=save_every,
-                project=project and first,
-            )
+            steps = min(chunk_steps, n_steps - done)
+            try:
+                chunk = self.integrate(
+                    q_start,
+                    **start,
+                    h=h,
+                    n_steps=steps,
+                    t0=t_start,
+                    params=params,
+                    save_every=save_every,
+                    project=project and first,
+                )
+            except ConvergenceError as exc:
+                # report the failure in the coordinates and step count of the whole run
+                exc.step += done
+                if exc.partial is not None:
+                    partial = exc.partial
+                    if offset is not None:
+                        partial = replace(partial, q=partial.q + offset)
+                    exc.partial = partial if first else _without_first_row(partial)
+                raise
             if offset is not None:
                 chunk = replace(chunk, q=chunk.q + offset)
             yield chunk if first else _without_first_row(chunk)
@@ -546,15 +580,26 @@ class Integrator:
         return qb + result.x[-n:]
 
 
-def _warn_if_unstable(traj: Trajectory, p0: NDArray, h: float) -> None:
-    """Warn when the momenta grew by more than ``INSTABILITY_GROWTH`` over the run."""
-    scale = 1.0 + float(np.max(np.abs(p0), initial=0.0))
-    largest = float(np.max(np.abs(traj.p), initial=0.0))
-    if largest > INSTABILITY_GROWTH * scale:
+def _warn_if_unstable(traj: Trajectory, h: float) -> None:
+    """Warn when the momenta grew by more than ``INSTABILITY_GROWTH`` over the run.
+
+    The growth is measured between the first and the last tenth of the saved
+    states, a ratio, so it does not depend on units (a body falling from rest
+    gains momentum linearly, a factor of about 10, not 1e6). Forced and
+    time-dependent systems, whose energy may legitimately grow, and runs with
+    fewer than 10 saved states are not checked.
+    """
+    structure = traj.system.structure
+    if len(traj) < 10 or structure.forced or not structure.autonomous:
+        return
+    tenth = len(traj) // 10
+    early = float(np.max(np.abs(traj.p[:tenth])))
+    late = float(np.max(np.abs(traj.p[-tenth:])))
+    if late > INSTABILITY_GROWTH * early:
         warnings.warn(
-            f"the momenta grew from {scale - 1:.3g} to {largest:.3g} over the run: h = {h:.3g} "
-            "is probably past the method's stability limit (the discrete solution grows "
-            "exponentially); use a smaller h",
+            f"the momenta grew by a factor {late / max(early, 1e-300):.3g} over the run: "
+            f"h = {h:.3g} is probably past the method's stability limit (the discrete "
+            "solution grows exponentially); use a smaller h",
             InstabilityWarning,
             stacklevel=3,
         )

@@ -23,7 +23,7 @@ the structure that lets the kernels skip work.
 from __future__ import annotations
 
 import random
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import sympy as sp
 
@@ -33,6 +33,7 @@ __all__ = [
     "analyse_structure",
     "periodic_coordinates",
     "pointwise_pieces",
+    "without_point_masses",
 ]
 
 
@@ -226,6 +227,39 @@ def pointwise_pieces(
         f=f,
         fq=fq,
         fv=fv,
+    )
+
+
+def without_point_masses(pieces: PointwisePieces) -> PointwisePieces:
+    r"""The pieces with the Dirac deltas of the second derivatives set to zero.
+
+    The second derivatives of a Lagrangian with kinks (``Abs``, ``Min``,
+    ``Max``, ``sign`` of a first derivative) contain ``DiracDelta`` terms. They
+    vanish everywhere except on the kink itself, so the point-wise (classical)
+    second derivative, which Newton's Jacobian needs, is the expression without
+    them; no code printer can evaluate a delta. Call it after
+    :func:`analyse_structure`, which must see the deltas: the classical second
+    derivative of an ``Abs(q)`` potential vanishes, yet the stage equations are
+    not linear.
+    """
+
+    def drop(m: sp.MatrixBase | None) -> sp.MatrixBase | None:
+        if m is None or not any(e.has(sp.DiracDelta) for e in m.values()):
+            return m
+        entries = {}
+        for key, e in m.todok().items():
+            e = e.replace(sp.DiracDelta, lambda *args: sp.S.Zero)
+            if e != 0:
+                entries[key] = e
+        return sp.ImmutableSparseMatrix(m.rows, m.cols, entries)
+
+    return replace(
+        pieces,
+        Lqq=drop(pieces.Lqq),
+        Lqv=drop(pieces.Lqv),
+        Lvv=drop(pieces.Lvv),
+        fq=drop(pieces.fq),
+        fv=drop(pieces.fv),
     )
 
 

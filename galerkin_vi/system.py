@@ -2,6 +2,7 @@ r"""The user's model: a Lagrangian :math:`L(t, q, v)` given in SymPy."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -20,6 +21,7 @@ from .symbolic import (
     analyse_structure,
     periodic_coordinates,
     pointwise_pieces,
+    without_point_masses,
 )
 
 __all__ = ["LagrangianSystem", "MomentumMap", "is_regular"]
@@ -135,8 +137,7 @@ class LagrangianSystem:
             names = ", ".join(sorted(str(s) for s in undeclared))
             hint = " (pass t=... for a time-dependent L, params={...} for constants)"
             raise ValueError(f"L contains undeclared symbols: {names}{hint}")
-        if L.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
-            raise ValueError("L contains an infinite or undefined constant")
+        _check_constants(L, "L")
         _check_printable(L, "L")
         force_list = _expression_list(
             "forces", forces, set(declared), "q, v, t and parameters", length=len(q_list)
@@ -159,8 +160,11 @@ class LagrangianSystem:
         self.param_defaults = np.array([float(params[s]) for s in self.params], dtype=float)
         self.forces = None if force_list is None else tuple(force_list)
         self.constraints = None if constraint_list is None else tuple(constraint_list)
-        self.pieces: PointwisePieces = pointwise_pieces(L, q_list, v_list, force_list)
-        self.structure: Structure = analyse_structure(self.pieces, q_list, v_list, t)
+        pieces = pointwise_pieces(L, q_list, v_list, force_list)
+        # the structure sees the Dirac deltas of kinks: Abs(q) is not quadratic
+        self.structure: Structure = analyse_structure(pieces, q_list, v_list, t)
+        self.pieces: PointwisePieces = without_point_masses(pieces)
+        self._check_derivatives()
         #: per coordinate: L, forces and constraints are 2 pi-periodic in it (an angle)
         self.periodic: tuple[bool, ...] = periodic_coordinates(
             [L, *(force_list or ()), *(constraint_list or ())], q_list
@@ -298,6 +302,33 @@ class LagrangianSystem:
         r""":math:`\partial^2 g_j/\partial q^2`, shape (..., m, n, n)."""
         shape = np.shape(q)[:-1] + (self.m, self.n, self.n)
         return self._constraint("g_qq", q, t, params).reshape(shape)
+
+    def _check_derivatives(self) -> None:
+        """Reject derivatives that the code generators cannot print, naming their source.
+
+        ``L`` itself may be printable while its derivatives are not: the
+        derivative of ``Heaviside(q)`` is a Dirac delta, that of ``gamma`` holds
+        ``polygamma`` and that of ``floor`` stays unevaluated.
+        """
+        p = self.pieces
+        groups = [("L", [*p.Lq, *p.Lv, *p.Lqq.values(), *p.Lqv.values(), *p.Lvv.values()])]
+        if p.f is not None:
+            groups.append(("forces", [*p.fq.values(), *p.fv.values()]))
+        c = self.constraint_pieces
+        if c is not None:
+            groups.append(
+                ("constraints", [*c.jacobian, *c.rate, *(e for h in c.hessians for e in h)])
+            )
+        from .codegen import unsupported_functions
+
+        for name, exprs in groups:
+            unsupported = unsupported_functions(sp.Tuple(*exprs))
+            if unsupported:
+                hints = [_DERIVATIVE_HINTS[f] for f in unsupported if f in _DERIVATIVE_HINTS]
+                raise ValueError(
+                    f"the derivatives of {name} contain {', '.join(unsupported)}, which the "
+                    "code generators cannot compile" + "".join(f"; {h}" for h in hints)
+                )
 
     def _check_regular(self) -> None:
         """Raise if L_vv is singular at every sampled point where it is finite.
@@ -491,8 +522,7 @@ def _expression_list(
                 f"{name}[{j}] contains symbols {names} that it may not depend on "
                 f"(allowed: {allowed_text})"
             )
-        if e.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
-            raise ValueError(f"{name}[{j}] contains an infinite or undefined constant")
+        _check_constants(e, f"{name}[{j}]")
         _check_printable(e, f"{name}[{j}]")
         out.append(e)
     if length is not None and len(out) != length:
@@ -500,6 +530,31 @@ def _expression_list(
     if not out:
         raise ValueError(f"{name} is empty: pass None for no {name}")
     return out
+
+
+_DERIVATIVE_HINTS = {
+    "DiracDelta": (
+        "a Dirac delta comes from differentiating a jump (Heaviside or sign of a "
+        "coordinate or velocity): keep the expression continuous and write kinks with "
+        "Abs, Min, Max or Piecewise"
+    ),
+    "Derivative": "SymPy cannot differentiate a function in it (floor, ceiling, Mod, ...)",
+    "polygamma": "polygamma comes from differentiating gamma or loggamma",
+}
+
+
+def _check_constants(expr: sp.Expr, name: str) -> None:
+    """Reject infinite, undefined, complex and out-of-range numbers in ``expr``."""
+    if expr.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
+        raise ValueError(f"{name} contains an infinite or undefined constant")
+    if expr.has(sp.I):
+        raise ValueError(
+            f"{name} contains the imaginary unit I, but it must be real (SymPy turns the "
+            "square root or logarithm of a negative number into a complex constant)"
+        )
+    for number in expr.atoms(sp.Number):
+        if not math.isfinite(float(number)):
+            raise ValueError(f"{name} contains the number {number}, beyond the range of float64")
 
 
 def _check_printable(expr: sp.Expr, name: str) -> None:

@@ -305,3 +305,24 @@ def test_watched_unknowns_decide_convergence_alone():
     assert abs(watched.x[1] - 1.0) < 1e-10
     everything = newton_solve(residual_and_jacobian, np.array([1.0, 0.0]))
     assert everything.status != CONVERGED
+
+
+def test_negligible_increments_count_as_zero():
+    # an increment of 1e-18 of the scale moves no bit of q: converged at once,
+    # even though it is still decreasing
+    scale = 1.0 + 1e4
+    assert newton_status(0.9e-18 * scale, 1.0, scale, 1e-14, 2, 30) == CONVERGED
+    assert newton_status(5e-18 * scale, 1e-16 * scale, scale, 1e-14, 2, 30) != CONVERGED
+
+
+def test_base_scales_the_stopping_test():
+    # residual noise of 1e-10, the round-off of a coordinate of size 1e6: increments
+    # stagnate there, above STAGNATION tol (1 + |x|) = 1e-12 for the increments alone;
+    # judged against base = 1e6 (max|q_k|) they are at the floor and accepted
+    rng = np.random.default_rng(0)
+
+    def fun(x):
+        return np.array([x[0] - 1e-3 + 1e-10 * rng.standard_normal()]), np.eye(1)
+
+    assert newton_solve(fun, np.zeros(1)).status != CONVERGED
+    assert newton_solve(fun, np.zeros(1), base=1e6).status == CONVERGED

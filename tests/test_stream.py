@@ -83,3 +83,59 @@ def test_growth_past_the_stability_limit_warns_and_overflow_raises():
         verlet.integrate([1.0], v0=[0.0], h=2.1, n_steps=5000)
     partial = info.value.partial
     assert np.all(np.isfinite(partial.q)) and len(partial) > 100
+
+
+def test_a_failing_chunk_reports_the_whole_run():
+    # a rotor spun up by a torque while its potential stiffens: Newton fails after a while
+    t = sp.Symbol("t")
+    rotor = gvi.LagrangianSystem(
+        w**2 / 2 + sp.exp(t / 3) * sp.cos(th), [th], [w], t=t, forces=[sp.Float(5.0)]
+    )
+    integrator = gvi.Integrator(rotor, gvi.Galerkin(2))
+    got = []
+    with pytest.raises(gvi.ConvergenceError) as info:
+        for chunk in integrator.stream([0.5], v0=[3.0], h=0.1, n_steps=1000, chunk_steps=100):
+            got.append(chunk)
+    error = info.value
+    assert len(got) >= 1
+    last_t, last_q = got[-1].t[-1], got[-1].q[-1, 0]
+    partial = error.partial
+    # the partial run continues the yielded rows: later times, continuous angle
+    assert partial.t[0] == pytest.approx(last_t + 0.1)
+    previous_increment = got[-1].q[-1, 0] - got[-1].q[-2, 0]
+    assert abs((partial.q[0, 0] - last_q) - previous_increment) < 1.0
+    assert error.step == round(partial.t[-1] / 0.1)
+    assert error.step >= 100 * len(got)
+
+
+@pytest.mark.parametrize("kind", ["explicit", "linear"])
+def test_specialised_loops_keep_the_last_good_state(kind):
+    integrator = gvi.Integrator(OSCILLATOR, gvi.Galerkin(1 if kind == "explicit" else 2))
+    assert integrator.kernel_path == kind
+    h = 2.1 if kind == "explicit" else 10.0  # past the stability limit: overflow
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", gvi.InstabilityWarning)
+        with pytest.raises(gvi.ConvergenceError) as info:
+            integrator.integrate([1.0], v0=[0.0], h=h, n_steps=100_000, save_every=7)
+    error = info.value
+    partial = error.partial
+    # the state at the start of the failing step is saved, due or not
+    assert partial.t[-1] == pytest.approx(error.t)
+    assert np.all(np.isfinite(partial.q)) and np.all(np.isfinite(partial.p))
+
+
+def test_the_instability_warning_does_not_depend_on_units():
+    # a 1000 kg body falling from rest: p grows linearly to 1.8e6, no warning
+    z, vz = sp.symbols("z vz")
+    falling = gvi.LagrangianSystem(1000 * vz**2 / 2 - 1000 * 9.81 * z, [z], [vz])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", gvi.InstabilityWarning)
+        traj = gvi.Integrator(falling, gvi.Galerkin(1)).integrate(
+            [0.0], v0=[0.0], h=0.1, n_steps=1800
+        )
+    assert abs(traj.p[-1, 0]) > 1e6
+    # an unstable run from a tiny amplitude warns although its momenta stay small
+    verlet = gvi.Integrator(OSCILLATOR, gvi.Galerkin(1))
+    with pytest.warns(gvi.InstabilityWarning):
+        tiny = verlet.integrate([1e-20], v0=[0.0], h=2.1, n_steps=60)
+    assert np.max(np.abs(tiny.p)) < 1e-3

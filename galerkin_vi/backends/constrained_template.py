@@ -172,7 +172,7 @@ def solve_constrained_stages(t0, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, m
 
 
 @kernel
-def extrapolate_impulses(lam, mu, b, E):
+def extrapolate_impulses(lam, mu, b, E, values):
     r"""Newton's guess of the impulses: the previous step's multiplier polynomial extrapolated.
 
     On entry ``lam`` holds the previous step's impulses :math:`\Lambda^\nu =
@@ -180,12 +180,11 @@ def extrapolate_impulses(lam, mu, b, E):
     :math:`h b_s\lambda^s`; the multipliers :math:`\lambda^0..\lambda^s` at the
     control nodes define a polynomial, evaluated at this step's nodes with
     :math:`E_{\nu\mu} = \ell_\mu(1 + d_\nu)`. Collocated nodes: ``b[nu]``
-    is the weight of node :math:`\nu`.
+    is the weight of node :math:`\nu`. ``values`` (length s + 1) is work space.
     """
     s, m = lam.shape
     for j in range(m):
         previous_end = mu[j] / b[s]
-        values = np.empty(s + 1)
         for nu in range(s):
             values[nu] = lam[nu, j] / b[nu]
         values[s] = previous_end
@@ -294,6 +293,7 @@ def constrained_kernel(
     Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = work
     lam = np.zeros((s, m))
     mu = np.zeros(m)
+    multipliers = np.zeros(s + 1)
     C = np.zeros((s1, n))
     C_prev = np.zeros((s1, n))
     qk = q0.copy()
@@ -313,7 +313,7 @@ def constrained_kernel(
         tk = t0 + k * h
         if k > 0:
             extrapolate(C, C_prev, E)
-            extrapolate_impulses(lam, mu, b, E)
+            extrapolate_impulses(lam, mu, b, E, multipliers)
         status, its, increment, residual = solve_constrained_stages(
             tk, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, maxiter, work, cw
         )

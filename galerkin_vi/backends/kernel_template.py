@@ -592,6 +592,11 @@ def verlet_kernel(q0, p0, t0, h, n_steps, save_every, prm, Minv, t_out, q_out, p
     a0 = np.zeros(n)
     a1 = np.zeros(n)
     rhs = np.zeros(n)
+    # the state before the step, restored on failure: the last good state is saved
+    q_before = np.zeros(n)
+    p_before = np.zeros(n)
+    lost_before = np.zeros(n)
+    turns_before = np.zeros(n)
     saved = save_row(0, t0, qk, q_lost, turns, pk, out)
     point_gradient(t0, qk, zero, prm, lq, a0)
     point_gradient(t0, qk, zero, prm, lq_next, a1)
@@ -602,6 +607,10 @@ def verlet_kernel(q0, p0, t0, h, n_steps, save_every, prm, Minv, t_out, q_out, p
             point_gradient(tk, qk, zero, prm, lq, a0)
             point_gradient(tk1, qk, zero, prm, lq_next, a1)
         for a in range(n):
+            q_before[a] = qk[a]
+            p_before[a] = pk[a]
+            lost_before[a] = q_lost[a]
+            turns_before[a] = turns[a]
             rhs[a] = pk[a] + 0.5 * h * lq[a] - 0.5 * (a0[a] + a1[a])
         for a in range(n):
             acc = 0.0
@@ -625,6 +634,8 @@ def verlet_kernel(q0, p0, t0, h, n_steps, save_every, prm, Minv, t_out, q_out, p
             if not abs(pk[a]) < 1e300 or not abs(qk[a]) < 1e300:
                 finite = False
         if not finite:
+            if k % save_every != 0:
+                saved = save_row(saved, tk, q_before, lost_before, turns_before, p_before, out)
             return STATUS_NONFINITE, k, saved
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             saved = save_row(saved, tk1, qk, q_lost, turns, pk, out)
@@ -690,14 +701,15 @@ def linear_kernel(
             for a in range(n):
                 C[nu, a] += R[unknown(nu - 1, a, s, n)]
         assemble_gradient(tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
-        finite = True
+        for a in range(n):
+            if not abs(G[s, a]) < 1e300 or not abs(C[s, a]) < 1e300:
+                # keep the last good state (q_k, p_k), whether or not it was due for saving
+                if k % save_every != 0:
+                    saved = save_row(saved, tk, qk, q_lost, turns, pk, out)
+                return STATUS_NONFINITE, k, saved
         for a in range(n):
             pk[a] = G[s, a]
-            if not abs(pk[a]) < 1e300 or not abs(C[s, a]) < 1e300:
-                finite = False
         advance_position(qk, q_lost, C, turns)
-        if not finite:
-            return STATUS_NONFINITE, k, saved
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             saved = save_row(saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, out)
     return STATUS_OK, n_steps, saved

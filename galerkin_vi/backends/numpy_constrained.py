@@ -129,8 +129,11 @@ def integrate(
         if status == 0:
             p_tilde = discrete_gradient(system, tables, tk, h, qk, C, prm)[s]
             v_end = tables.D[-1, 1:] @ C[1:] / h  # the polynomial's slope at the step's end
-            p_next, _ = project_momentum(system, tk + h, qk + C[s], p_tilde, v_end, prm)
-            status = 0 if np.all(np.isfinite(p_next)) else 3
+            try:
+                p_next, _ = project_momentum(system, tk + h, qk + C[s], p_tilde, v_end, prm)
+                status = 0 if np.all(np.isfinite(p_next)) else 3
+            except ValueError:
+                status = 1
         if status != 0:
             if k % save_every != 0:
                 save_row(saved, tk, qk, q_lost, turns, pk, periodic, *outputs)
