@@ -276,6 +276,11 @@ class _KernelPrinter(PythonCodePrinter):
                 power = base if whole == 1 else f"{base}**{whole}"
                 magnitude = f"({power}*{magnitude})"
             return magnitude if exponent.p > 0 else f"(1.0/{magnitude})"
+        if exponent.is_Integer and exponent < 0:
+            # numba raises ZeroDivisionError for 0.0**-n whatever its error model; a
+            # division gives inf, which the kernel reports as a ConvergenceError
+            base = self.parenthesize(expr.base, sp.printing.precedence.PRECEDENCE["Pow"])
+            return f"(1.0/{base})" if exponent == -1 else f"(1.0/{base}**{-exponent})"
         return super()._print_Pow(expr, rational=rational)
 
 
@@ -436,7 +441,9 @@ def _constraint_functions(spec: KernelSpec) -> list[str]:
 
 
 def render_module(
-    spec: KernelSpec, key: str, decorator: str = 'njit(cache=True, inline="always")'
+    spec: KernelSpec,
+    key: str,
+    decorator: str = 'njit(cache=True, inline="always", error_model="numpy")',
 ) -> str:
     """Source text of the kernel module for ``spec``.
 
@@ -447,8 +454,10 @@ def render_module(
         The cache key; written on the first and last line so that a truncated
         or foreign file is recognised.
     decorator : str
-        Expression applied to every kernel function (``"njit(cache=True)"`` for
-        the compiled backend).
+        Expression applied to every kernel function. The compiled backend's
+        uses numba's NumPy error model: a division by zero gives inf or NaN (and
+        a ConvergenceError with the partial trajectory) instead of raising
+        ZeroDivisionError out of the kernel.
     """
     large = len(spec.hessian_entries) > INLINE_LIMIT
     head = [

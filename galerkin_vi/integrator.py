@@ -592,10 +592,11 @@ def _warn_if_unstable(traj: Trajectory, h: float) -> None:
     structure = traj.system.structure
     if len(traj) < 10 or structure.forced or not structure.autonomous:
         return
-    tenth = len(traj) // 10
+    # at least two rows: a start at rest has p_0 = 0, and any motion is not growth
+    tenth = max(2, len(traj) // 10)
     early = float(np.max(np.abs(traj.p[:tenth])))
     late = float(np.max(np.abs(traj.p[-tenth:])))
-    if late > INSTABILITY_GROWTH * early:
+    if early > 0.0 and late > INSTABILITY_GROWTH * early:
         warnings.warn(
             f"the momenta grew by a factor {late / max(early, 1e-300):.3g} over the run: "
             f"h = {h:.3g} is probably past the method's stability limit (the discrete "

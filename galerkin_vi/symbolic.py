@@ -263,6 +263,18 @@ def without_point_masses(pieces: PointwisePieces) -> PointwisePieces:
     )
 
 
+def _value_at(expr: sp.Expr, point: dict[sp.Symbol, sp.Float]) -> sp.Expr | None:
+    """``expr`` evaluated at ``point``, or None where SymPy refuses.
+
+    Min, Max and Piecewise conditions raise on NaN or complex values (an
+    undefined branch, a negative number to a fractional power).
+    """
+    try:
+        return expr.xreplace(point)
+    except (TypeError, ValueError):
+        return None
+
+
 def _is_zero_matrix(m: sp.MatrixBase) -> bool:
     """Whether every entry is identically zero.
 
@@ -272,8 +284,8 @@ def _is_zero_matrix(m: sp.MatrixBase) -> bool:
     rng = random.Random(20261122)
     for e in m.values():
         point = {s: sp.Float(rng.uniform(0.3, 1.7)) for s in e.free_symbols}
-        value = e.xreplace(point)
-        if value.is_Number and value != 0:
+        value = _value_at(e, point)
+        if value is None or (value.is_Number and value != 0):
             return False
         if sp.simplify(e) != 0:
             return False
@@ -320,22 +332,41 @@ def analyse_structure(
 def periodic_coordinates(exprs: list[sp.Expr], q: list[sp.Symbol]) -> tuple[bool, ...]:
     r"""Which coordinates are angles: every expression is :math:`2\pi`-periodic in them.
 
-    A coordinate counts when it occurs in some expression, and shifting it
-    by :math:`2\pi` leaves every expression unchanged (SymPy removes whole
-    turns from the arguments of sine and cosine). The check is symbolic, after
-    a numeric probe that rejects most non-periodic coordinates cheaply.
+    A coordinate counts when it occurs in some expression, and only inside the
+    arguments of sine, cosine, tangent, cotangent, secant or cosecant, each
+    argument an integer multiple of it plus terms free of it (``cos(2 a - b)``).
+    The check is structural, one pass over each expression, so a chain of 1000
+    coordinates costs milliseconds; a periodic expression in another form
+    (:math:`\sqrt{\sin^2 a}`, say, is fine, but :math:`a - a\cos^2 a - a\sin^2 a`
+    is not recognised) only costs the optimisation, never correctness.
     """
-    rng = random.Random(20261123)
-    out = []
-    for qa in q:
-        relevant = [e for e in exprs if qa in e.free_symbols]
-        periodic = bool(relevant)
-        for e in relevant:
-            difference = e.xreplace({qa: qa + 2 * sp.pi}) - e
-            point = {x: sp.Float(rng.uniform(0.3, 1.7)) for x in difference.free_symbols}
-            value = sp.N(difference.xreplace(point))
-            if not (value.is_Number and abs(value) < 1e-9) or sp.simplify(difference) != 0:
-                periodic = False
-                break
-        out.append(periodic)
-    return tuple(out)
+    candidates = set(q)
+    seen: set[sp.Symbol] = set()
+    for e in exprs:
+        seen |= e.free_symbols & candidates
+        candidates -= _outside_trig(e, candidates)
+    return tuple(qa in candidates and qa in seen for qa in q)
+
+
+_TRIG = (sp.sin, sp.cos, sp.tan, sp.cot, sp.sec, sp.csc)
+
+
+def _outside_trig(expr: sp.Expr, symbols: set[sp.Symbol]) -> set[sp.Symbol]:
+    """The ``symbols`` that occur in ``expr`` other than as whole turns of a trig argument."""
+    present = expr.free_symbols & symbols
+    if not present:
+        return set()
+    if isinstance(expr, sp.Symbol):
+        return {expr}
+    if isinstance(expr, _TRIG):
+        (argument,) = expr.args
+        bad = set()
+        for s in present:
+            slope = sp.diff(argument, s)
+            if not (slope.is_Integer and not (argument - slope * s).has(s)):
+                bad.add(s)
+        return bad
+    bad = set()
+    for arg in expr.args:
+        bad |= _outside_trig(arg, symbols)
+    return bad

@@ -78,7 +78,12 @@ class LagrangianSystem:
         If ``q`` and ``v`` differ in length, symbols repeat, ``L``, a force or a
         constraint contains undeclared symbols (a constraint may not contain
         velocities), ``forces`` does not have one entry per coordinate, a
-        constraint is constant, or a parameter value is not a finite real number.
+        constraint is constant, or a parameter value is not a finite real number;
+        also if ``L``, a force or a constraint is complex (contains ``I``), holds
+        an infinite constant or a number beyond float64, or contains, itself or
+        in its first or second derivatives, a function the code generators
+        cannot compile (the Dirac delta of a ``Heaviside`` or ``sign`` jump,
+        ``polygamma`` from ``gamma``, a derivative SymPy leaves unevaluated).
     DegenerateLagrangianError
         If :math:`\partial^2 L/\partial v^2` is singular (checked at random points).
 
@@ -87,6 +92,10 @@ class LagrangianSystem:
     The structure found here (:attr:`structure`) selects cheaper kernels, e.g.
     no time argument for autonomous systems and a mass matrix factorised once
     when :math:`\partial^2 L/\partial v^2` is constant.
+
+    Kinks (``Abs``, ``Min``, ``Max``, ``Piecewise``) are allowed: the Dirac
+    deltas of their second derivatives are dropped (:func:`.symbolic.without_point_masses`),
+    which leaves the classical derivative everywhere off the kink.
 
     Examples
     --------
@@ -160,11 +169,18 @@ class LagrangianSystem:
         self.param_defaults = np.array([float(params[s]) for s in self.params], dtype=float)
         self.forces = None if force_list is None else tuple(force_list)
         self.constraints = None if constraint_list is None else tuple(constraint_list)
-        pieces = pointwise_pieces(L, q_list, v_list, force_list)
-        # the structure sees the Dirac deltas of kinks: Abs(q) is not quadratic
-        self.structure: Structure = analyse_structure(pieces, q_list, v_list, t)
+        try:
+            pieces = pointwise_pieces(L, q_list, v_list, force_list)
+        except (TypeError, ValueError) as exc:
+            # e.g. Max(Piecewise((1, k > k)), x): a branch that is undefined for real k
+            raise ValueError(
+                "SymPy cannot differentiate L and the forces with real coordinates, "
+                f"velocities, time and parameters: {exc}"
+            ) from exc
         self.pieces: PointwisePieces = without_point_masses(pieces)
         self._check_derivatives()
+        # the structure sees the Dirac deltas of kinks: Abs(q) is not quadratic
+        self.structure: Structure = analyse_structure(pieces, q_list, v_list, t)
         #: per coordinate: L, forces and constraints are 2 pi-periodic in it (an angle)
         self.periodic: tuple[bool, ...] = periodic_coordinates(
             [L, *(force_list or ()), *(constraint_list or ())], q_list

@@ -16,10 +16,11 @@ What is covered here (and what lives elsewhere):
 - a Newton failure mid-run keeps every saved state, with and without constraints (the
   finite-time blow-up of an unconstrained model: test_integrator.py).
 
-Compiled here (about 15 s each with a cold cache, loaded in well under a second after):
-the kink and special-function zoo, a pendulum and a constrained pendulum with a
-stiffness that grows in time. Each test that needs a cold cache of its own (cache
-faults, concurrent builds) uses a model compiled nowhere else and its own directory.
+Compiled here (15-40 s each with a cold cache, loaded in under a second after): the kink
+and special-function zoo, a pendulum and a constrained pendulum with a stiffness that
+grows in time. Each test that needs a cold cache of its own (cache faults, concurrent
+builds) uses a model compiled nowhere else and its own directory; the concurrent build
+of a constrained model takes about 20 s of the file's 35-60 s.
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import sympy as sp
-from hypothesis import HealthCheck, given, note, settings
+from hypothesis import HealthCheck, event, given, note, settings
 from hypothesis import strategies as st
 
 import galerkin_vi as gvi
@@ -60,22 +61,29 @@ def _raised_by_the_library(exc: BaseException) -> bool:
     return bool(frames) and Path(frames[-1].filename).resolve().is_relative_to(LIBRARY)
 
 
-# numeric.FlatEvaluator (the NumPy backend's point evaluation) prints these as Python's
-# math functions, which take scalars only: evaluated at an array of quadrature points
-# they raise NumPy's TypeError "only 0-dimensional arrays can be converted to Python
-# scalars". Known and reported (test_scalar_only_special_functions_in_the_numpy_backend);
-# drop this allowance when numeric.py vectorises them.
+# Two known faults of numeric.FlatEvaluator (the NumPy backend's point evaluation, via
+# lambdify), reported; each has an xfail test below. Drop the allowance when fixed.
+# 1. erf, erfc, gamma and loggamma are printed as Python's math functions: at an array
+#    of quadrature points NumPy raises the TypeError "only 0-dimensional arrays can be
+#    converted to Python scalars", and at a pole (gamma(0)) math raises the ValueError
+#    "math domain error" (the compiled kernels return inf there, a ConvergenceError).
+# 2. And/Or of a condition on arrays (x > 0) and one on scalars (k > 0, a parameter or a
+#    constant) is printed as logical_and.reduce((array, scalar)): a ValueError "setting
+#    an array element with a sequence ... inhomogeneous shape".
 SCALAR_ONLY = (sp.erf, sp.erfc, sp.gamma, sp.loggamma)
 
 
-def _known_scalar_only_failure(exc: BaseException, L: sp.Expr) -> bool:
+def _known_numpy_evaluator_fault(exc: BaseException, L: sp.Expr) -> str | None:
     frames = traceback.extract_tb(exc.__traceback__)
-    return (
-        isinstance(exc, TypeError)
-        and L.has(*SCALAR_ONLY)
-        and bool(frames)
-        and frames[-1].filename.startswith("<lambdifygenerated")
-    )
+    if not (frames and frames[-1].filename.startswith("<lambdifygenerated")):
+        return None
+    message = str(exc)
+    scalar_only = "arrays can be converted to Python scalars" in message
+    if L.has(*SCALAR_ONLY) and (scalar_only or message == "math domain error"):
+        return "special function from the math module"
+    if isinstance(exc, ValueError) and "inhomogeneous shape" in message:
+        return "And/Or of array and scalar conditions"
+    return None
 
 
 # ------------------------------------------------------------- random models
@@ -204,7 +212,7 @@ def _integrate(model: dict) -> gvi.Trajectory:
     )
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(models())
 def test_random_models_integrate_or_are_rejected_cleanly(model):
     note(f"L = {model['L']}")
@@ -213,6 +221,7 @@ def test_random_models_integrate_or_are_rejected_cleanly(model):
             warnings.simplefilter("ignore")  # overflow and instability warnings are allowed
             traj = _integrate(model)
     except gvi.ConvergenceError as exc:
+        event("ConvergenceError")
         partial = exc.partial
         assert isinstance(partial, gvi.Trajectory)
         assert 1 <= len(partial) and 0 <= exc.step < model["n_steps"]
@@ -220,12 +229,16 @@ def test_random_models_integrate_or_are_rejected_cleanly(model):
         assert np.all(np.isfinite(partial.q)) and np.all(np.isfinite(partial.p))
         return
     except (TypeError, ValueError, NotImplementedError) as exc:  # incl. DegenerateLagrangian
-        if _known_scalar_only_failure(exc, model["L"]):
+        known = _known_numpy_evaluator_fault(exc, model["L"])
+        if known:
+            event(f"known fault of the NumPy evaluator: {known}")
             return
+        event(f"rejected: {type(exc).__name__}: {str(exc)[:40]}")
         note("".join(traceback.format_exception(exc)))
         assert _raised_by_the_library(exc), f"{type(exc).__name__} from outside the library"
         assert str(exc)
         return
+    event("integrated")
     n = len(model["q"])
     assert traj.q.shape == traj.p.shape == (model["n_steps"] + 1, n)
     assert np.all(np.isfinite(traj.t)), "non-finite times returned"
@@ -240,6 +253,8 @@ s_ = sp.Symbol("s")
     ("potential", "match"),
     [
         (sp.Heaviside(x0), r"derivatives of L contain DiracDelta.*jump.*Abs, Min, Max"),
+        # x |x| written with sign: its delta term x^2 delta(x) vanishes, but is not
+        # recognised (x0 * Abs(x0) is accepted)
         (sp.sign(x0) * x0**2, "derivatives of L contain DiracDelta"),
         (sp.gamma(x0 + 3), "derivatives of L contain polygamma.*gamma or loggamma"),
         (sp.loggamma(x0 + 3), "derivatives of L contain polygamma"),
@@ -288,10 +303,40 @@ def test_kinks_drop_their_dirac_deltas_but_not_their_structure():
     assert gvi.Integrator(system, gvi.Galerkin(2), backend="numba").kernel_path == "newton"
     # away from the kink the motion is a parabola, which Galerkin(2) reproduces exactly
     traj = gvi.Integrator(system, gvi.Galerkin(2), backend="numpy").integrate(
-        [1.0], [0.0], h=0.1, n_steps=10
+        [1.0], [0.2], h=0.1, n_steps=10
     )
-    np.testing.assert_allclose(traj.q[:, 0], 1 - traj.t**2 / 2, rtol=0, atol=1e-14)
-    np.testing.assert_allclose(traj.p[:, 0], -traj.t, rtol=0, atol=1e-14)
+    t = traj.t
+    np.testing.assert_allclose(traj.q[:, 0], 1 + 0.2 * t - t**2 / 2, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(traj.p[:, 0], 0.2 - t, rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize(
+    ("potential", "match"),
+    [
+        # before: SymPy's TypeError or ValueError from the numeric probes of the structure
+        # analysis (a NaN or complex value inside Max or a Piecewise condition)
+        (sp.Max(sp.Piecewise((T, x0 < sp.pi)), sp.atan2(k0, -1)), None),
+        (sp.Piecewise((sp.log(x0), (-sp.Rational(3, 2)) ** k0 > x0**2), (sp.log(T), True)), None),
+        (x0 - sp.Piecewise((x0, x0 > x0)) / 10, None),
+        # undefined for every real k0: SymPy cannot even differentiate it
+        (sp.Max(sp.Piecewise((1, k0 > k0)), x0), "SymPy cannot differentiate L"),
+    ],
+)
+def test_models_sympy_cannot_evaluate_everywhere(potential, match):
+    def build():
+        return gvi.LagrangianSystem(w0**2 / 2 - potential, [x0], [w0], t=T, params={k0: 0.3})
+
+    if match is not None:
+        with pytest.raises(ValueError, match=match):
+            build()
+        return
+    system = build()
+    assert system.periodic == (False,)
+    with np.errstate(all="ignore"):
+        traj = gvi.Integrator(system, gvi.Galerkin(2), backend="numpy").integrate(
+            [0.5], [0.1], h=0.1, n_steps=3
+        )
+    assert np.all(np.isfinite(traj.q))
 
 
 @pytest.mark.xfail(
@@ -305,6 +350,20 @@ def test_scalar_only_special_functions_in_the_numpy_backend():
     integrator = gvi.Integrator(system, gvi.Galerkin(2), backend="numpy")
     traj = integrator.integrate([0.5], [0.0], h=0.1, n_steps=3)
     assert np.all(np.isfinite(traj.energy()))
+
+
+@pytest.mark.xfail(
+    reason="numeric.FlatEvaluator (lambdify) prints And(x > 0, k > 0) as "
+    "logical_and.reduce((array, scalar)), which NumPy refuses (reported)",
+    raises=ValueError,
+    strict=False,
+)
+def test_conditions_on_coordinates_and_parameters_in_the_numpy_backend():
+    potential = sp.Piecewise((x0**2, (x0 > 0) & (k0 > 0)), (0, True))
+    system = gvi.LagrangianSystem(w0**2 / 2 - potential, [x0], [w0], params={k0: 1.0})
+    integrator = gvi.Integrator(system, gvi.Galerkin(2), backend="numpy")
+    traj = integrator.integrate([0.5], [0.1], h=0.1, n_steps=3)
+    assert np.all(np.isfinite(traj.q))
 
 
 # ------------------------------------------------ compiled kinks and specials
@@ -341,8 +400,8 @@ def test_compiled_kinks_and_special_functions_agree_with_numpy(zoo, method):
     compiled, reference = runs["numba"], runs["numpy"]
     # through the kinks at x0 = 0 and x1 = 0 and the switch at t = 1
     assert compiled.q[:, 0].min() < 0 < compiled.q[:, 1].max()
-    assert np.abs(compiled.q - reference.q).max() <= 1e-12  # measured 4.4e-16
-    assert np.abs(compiled.p - reference.p).max() <= 1e-12  # measured 6.7e-16
+    assert np.abs(compiled.q - reference.q).max() <= 1e-12  # measured 2.0e-15, 3.6e-15
+    assert np.abs(compiled.p - reference.p).max() <= 1e-12  # measured 3.1e-15, 5.6e-15
     source = gvi.Integrator(zoo, method, backend="numba").source
     assert "else None" not in source and "math.nan" in source
     assert str(2**100) not in source  # the rational is printed as a float
@@ -353,12 +412,12 @@ def test_undefined_piecewise_branch_is_a_convergence_error_in_both_backends(zoo)
     for backend in BACKENDS:
         integrator = gvi.Integrator(zoo, gvi.Galerkin(2), backend=backend)
         with np.errstate(all="ignore"), pytest.raises(gvi.ConvergenceError) as info:
-            integrator.integrate([0.0, -4.8], [0.0, -2.0], h=0.02, n_steps=100)
+            integrator.integrate([0.0, -4.8], [0.0, -6.0], h=0.005, n_steps=100)
         err = failures[backend] = info.value
         assert 0 < err.step < 100
         assert err.partial.q[-1, 1] > -5 and np.all(np.isfinite(err.partial.q))
     assert failures["numba"].step == failures["numpy"].step  # measured 7
-    np.testing.assert_allclose(
+    np.testing.assert_allclose(  # measured 1.4e-17
         failures["numba"].partial.q, failures["numpy"].partial.q, rtol=0, atol=1e-13
     )
 
@@ -591,8 +650,9 @@ def test_auto_backend_falls_back_to_numpy_with_one_warning(how, constrained, mon
 
 
 # -------------------------------------------------- Newton failure mid-run
-# stiffness 1 + k t^4: h * omega grows past what Newton can follow from its guess
-STIFF_L = w0**2 / 2 + (1 + k0 * T**4) * sp.cos(x0)
+# stiffness 1 + k0 t^4: h * omega grows past what Newton can follow from its guess; the
+# second term is singular at t = k1 (far away unless a test moves it)
+STIFF_L = w0**2 / 2 + (1 + k0 * T**4) * sp.cos(x0) - x0**2 / (1000 * (T - k1) ** 2)
 STIFF_CONSTRAINED_L = (w0**2 + w1**2) / 2 - (1 + k0 * T**4) * x1
 
 
@@ -600,7 +660,7 @@ STIFF_CONSTRAINED_L = (w0**2 + w1**2) / 2 - (1 + k0 * T**4) * x1
 def stiffening():
     return {
         "free": (
-            gvi.LagrangianSystem(STIFF_L, [x0], [w0], t=T, params={k0: 1.0}),
+            gvi.LagrangianSystem(STIFF_L, [x0], [w0], t=T, params={k0: 1.0, k1: -10.0}),
             [1.0],
             [0.0],
         ),
@@ -629,9 +689,9 @@ def test_newton_failure_mid_run_keeps_every_saved_state(stiffening, kind, backen
     with np.errstate(all="ignore"), pytest.raises(gvi.ConvergenceError) as info:
         integrator.integrate(q0, v0, h=h, n_steps=400, t0=t0, save_every=save_every)
     err = info.value
-    assert 30 <= err.step < 100  # measured 62 (free) and 54 (constrained) from t0 = 0.3
+    assert 30 <= err.step < 100  # measured 61 (free) and 53 (constrained)
     assert err.t == pytest.approx(t0 + err.step * h, rel=1e-15)
-    assert f"step {err.step}" in str(err)
+    assert f"step {err.step}" in str(err) and "Newton iteration did not converge" in str(err)
     partial = err.partial
     assert len(partial) == err.step // save_every + 1 + (err.step % save_every != 0)
     due = t0 + h * save_every * np.arange(err.step // save_every + 1)
@@ -640,7 +700,7 @@ def test_newton_failure_mid_run_keeps_every_saved_state(stiffening, kind, backen
     assert partial.n_steps == err.step + 1
     assert np.all(np.isfinite(partial.q)) and np.all(np.isfinite(partial.p))
     if kind == "constrained":
-        assert partial.constraint_residual().max() <= 1e-12  # measured 4.4e-16
+        assert partial.constraint_residual().max() <= 1e-12  # measured 3.3e-16
     # ... the very states of a run that stops just before the failing step
     shorter = integrator.integrate(q0, v0, h=h, n_steps=err.step, t0=t0, save_every=save_every)
     np.testing.assert_array_equal(partial.t, shorter.t)
@@ -657,7 +717,22 @@ def test_newton_failure_at_the_same_step_in_both_backends(stiffening, kind):
         with np.errstate(all="ignore"), pytest.raises(gvi.ConvergenceError) as info:
             integrator.integrate(q0, v0, h=0.1, n_steps=400, t0=0.3)
         failures[backend] = info.value
-    assert failures["numba"].step == failures["numpy"].step
-    np.testing.assert_allclose(
-        failures["numba"].partial.q, failures["numpy"].partial.q, rtol=0, atol=1e-10
+    assert failures["numba"].step == failures["numpy"].step  # measured 61 and 53
+    np.testing.assert_allclose(  # measured 7.1e-15 and 5.2e-15
+        failures["numba"].partial.q, failures["numpy"].partial.q, rtol=0, atol=1e-12
     )
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_division_by_zero_mid_run_is_a_convergence_error(stiffening, backend):
+    # x0^2 / (t - 1)^2 at the Lobatto node t = 1 of step 3: before, the compiled kernel
+    # raised ZeroDivisionError (numba's Python error model, and 0.0**-2 raises under any
+    # model) and the steps computed so far were lost; NumPy gave inf
+    system, q0, v0 = stiffening["free"]
+    integrator = gvi.Integrator(system, gvi.Galerkin(2), backend=backend)
+    with np.errstate(all="ignore"), pytest.raises(gvi.ConvergenceError) as info:
+        integrator.integrate(q0, v0, h=0.25, n_steps=8, params={k1: 1.0})
+    err = info.value
+    assert err.step == 3 and err.t == 0.75
+    np.testing.assert_array_equal(err.partial.t, [0.0, 0.25, 0.5, 0.75])
+    assert np.all(np.isfinite(err.partial.q)) and np.all(np.isfinite(err.partial.p))

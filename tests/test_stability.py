@@ -29,11 +29,15 @@ stability = importlib.util.module_from_spec(_SPEC)
 sys.modules[_SPEC.name] = stability  # dataclasses look their module up there
 _SPEC.loader.exec_module(stability)
 
-# Condition number bound for Lobatto control nodes, s <= 16. Measured kappa_2 of the
-# oscillator's stage Jacobian (Lobatto s+1 quadrature) at h omega = 0.5: 7.5, 39, 99, 199,
-# 354, 580, 889, 1290 for s = 2, 4, ..., 16, a power law s^2.7 (the same at h omega = 1,
-# and as in docs/theory.md section 3). 1e4 leaves a factor 7.7 at s = 16 and would hold
-# up to s = 35 on that law. Equidistant nodes grow 3.6-3.9x per degree: 1.3e8 at s = 16.
+# Condition number bound for Lobatto control nodes, s <= 16. At moderate h omega the stage
+# Jacobian is (1/h) sum_i b_i D_i D_i^T (rows 0..s-1, columns 1..s) minus a small mass term:
+# a stiffness matrix in the nodal basis. On GLL nodes that basis is well conditioned
+# (Lebesgue constant ~ log s) and only the derivative scale grows, polynomially; on
+# equidistant nodes the basis itself is exponentially ill-conditioned. Measured kappa_2
+# (Lobatto s+1 quadrature, h omega = 0.5): 7.5, 39, 99, 199, 354, 580, 889, 1290 for
+# s = 2, 4, ..., 16 (7% less at h omega = 1), a power law s^2.7; 1e4 leaves a factor 7.7
+# at s = 16 and would hold to s = 34 on that law. Equidistant: 3.6-3.9x per degree, 1.3e8
+# at s = 16 (as in docs/theory.md, "Interior nodes do not change the map").
 LOBATTO_CONDITION_BOUND = 1e4
 
 
@@ -83,7 +87,11 @@ def test_gauss_trace_is_that_of_the_diagonal_pade_approximant(degree):
         (
             3,
             3.1127176481642174,
-            [(3.1127176481642174, math.sqrt(10)), (math.sqrt(30), math.sqrt(60)), (8.62038217, None)],
+            [
+                (3.1127176481642174, math.sqrt(10)),
+                (math.sqrt(30), math.sqrt(60)),
+                (8.62038217, None),
+            ],
         ),
     ],
 )
@@ -97,6 +105,16 @@ def test_lobatto_intervals_from_the_trace(degree, limit, intervals):
         if hi is not None:
             assert found.hi == pytest.approx(hi, rel=1e-12)
     assert result.singular == ()  # the stage equations are solvable at every h
+
+
+@pytest.mark.parametrize("degree", [2, 3, 4, 5, 6])
+def test_bounded_lobatto_intervals_end_where_gauss_is_plus_minus_identity(degree):
+    # an observation the theory reproduces at every degree tried: Lobatto s+1 regains
+    # stability exactly at the points where s-point Gauss has M = +-I
+    lobatto = stability.analyse("lobatto", degree)
+    gauss = stability.analyse("gauss", degree)
+    ends = [iv.hi for iv in lobatto.unstable if iv.hi is not None]
+    assert ends == pytest.approx(list(gauss.touches), rel=1e-12)
 
 
 @pytest.mark.parametrize("degree", [1, 2, 3])
@@ -166,7 +184,9 @@ def test_fpu_past_verlet_limit_raises_and_never_returns_non_finite_states(fpu):
     # 2 omega / omega_max = 1.995 (measured between 1.9933 and 1.9934), not 2
     for x in (2.01, 2.5, 5.0, 50.0):
         run = _run(integrator, fpu, x, omega)
-        assert run.outcome in ("warning", "error") and run.finite  # measured: overflow at steps 4-25
+        assert (
+            run.outcome in ("warning", "error") and run.finite
+        )  # measured: overflow at steps 4-25
     with pytest.raises(gvi.ConvergenceError) as info:
         integrator.integrate(fpu.q0, fpu.v0, h=2.5 / omega, n_steps=2000, params=fpu.params)
     assert np.all(np.isfinite(info.value.partial.q)) and np.all(np.isfinite(info.value.partial.p))

@@ -139,3 +139,13 @@ def test_the_instability_warning_does_not_depend_on_units():
     with pytest.warns(gvi.InstabilityWarning):
         tiny = verlet.integrate([1e-20], v0=[0.0], h=2.1, n_steps=60)
     assert np.max(np.abs(tiny.p)) < 1e-3
+
+
+def test_no_instability_warning_for_a_start_at_rest_with_few_rows():
+    # the first tenth of 10 rows is p_0 = 0 alone: the test looks at two rows at least
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", gvi.InstabilityWarning)
+        traj = gvi.Integrator(PENDULUM, gvi.Galerkin(2)).integrate(
+            [1.0], v0=[0.0], h=0.1, n_steps=9
+        )
+    assert len(traj) == 10
