@@ -543,6 +543,9 @@ class Integrator:
             )
         qa, qb = self._state("q0", q0), self._state("q1", q1)
         h = self._step_size(h)
+        t0 = float(t0)
+        if not np.isfinite(t0):
+            raise ValueError(f"t0 must be finite, got {t0}")
         prm = system.parameter_vector(params)
         tb = self.method.tables
         s = tb.d.size - 1

@@ -482,11 +482,6 @@ def test_non_finite_initial_data_of_a_constrained_system_are_named(backend, proj
             integrator.integrate([1.0, 0.0], [0.0, bad], h=0.1, n_steps=2, project=project)
 
 
-@pytest.mark.xfail(
-    reason="Integrator.step_del does not validate t0 (reported): NaN reaches the Newton "
-    "solve and comes back as a ConvergenceError",
-    strict=False,
-)
 def test_step_del_names_a_non_finite_t0(driven):
     integrator = gvi.Integrator(driven, gvi.Galerkin(2), backend="numpy")
     with np.errstate(all="ignore"), pytest.raises(ValueError, match="t0 must be finite"):
@@ -531,12 +526,6 @@ def test_truncated_numba_index_and_data_files_are_rebuilt(tmp_path, monkeypatch)
     assert not numba_backend.discard_unreadable_numba_cache(module)
 
 
-@pytest.mark.xfail(
-    reason="backends/cache.read_entry checks only the key on the first and last line "
-    "(reported): a module corrupted in between fails to import with a SyntaxError",
-    raises=SyntaxError,
-    strict=False,
-)
 def test_module_corrupted_between_intact_key_lines_is_rebuilt(tmp_path, monkeypatch):
     from galerkin_vi import codegen
     from galerkin_vi.backends import cache

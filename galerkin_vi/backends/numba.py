@@ -39,8 +39,23 @@ def load_kernels(spec: KernelSpec) -> ModuleType:
     module_name = f"galerkin_vi_kernel_{key[:32]}"
     if module_name in sys.modules:
         return sys.modules[module_name]
-    if read_entry(key) is None:
+    cached = read_entry(key) is not None
+    if not cached:
         write_entry(key, render_module(spec, key))
+    try:
+        return _import_entry(key, module_name)
+    except (SyntaxError, ValueError):
+        if not cached:
+            raise
+    # an entry with intact key lines but damaged in between (bit rot, a foreign
+    # edit): rendered afresh and imported once more
+    entry_path(key).unlink(missing_ok=True)
+    write_entry(key, render_module(spec, key))
+    return _import_entry(key, module_name)
+
+
+def _import_entry(key: str, module_name: str) -> ModuleType:
+    """Import the cache entry ``key`` as ``module_name`` (numba compiles lazily)."""
     path = entry_path(key)
     discard_unreadable_numba_cache(path)
     loader_spec = importlib.util.spec_from_file_location(module_name, path)
