@@ -26,6 +26,8 @@ from typing import TYPE_CHECKING
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
+from .separable import has_stage_form
+
 if TYPE_CHECKING:
     from .system import LagrangianSystem
 
@@ -66,6 +68,7 @@ class KernelSpec:
     has_fv: bool = False
     m: int = 0
     periodic: tuple[bool, ...] = ()
+    separable: bool = False
     constraint_entries: tuple[tuple[str, sp.Expr], ...] = ()
     constraint_jacobian_entries: tuple[tuple[str, sp.Expr], ...] = ()
     constraint_rate_entries: tuple[tuple[str, sp.Expr], ...] = ()
@@ -168,6 +171,7 @@ def kernel_spec(system: LagrangianSystem) -> KernelSpec:
         banded=banded,
         has_fv=has_fv,
         periodic=system.periodic,
+        separable=has_stage_form(system),
         **_constraint_entries(system, rename),
     )
 
@@ -209,6 +213,7 @@ def _loop_sources() -> str:
             "newton.py",
             "backends/kernel_template.py",
             "backends/constrained_template.py",
+            "backends/separable_template.py",
         )
     )
 
@@ -222,7 +227,7 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
         backend_version,
         sys.version,
         repr((spec.n, spec.n_params, spec.autonomous, spec.has_Lqv, spec.banded, spec.has_fv)),
-        repr((spec.half_bandwidth, spec.pattern, spec.m, spec.periodic)),
+        repr((spec.half_bandwidth, spec.pattern, spec.m, spec.periodic, spec.separable)),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.constraint_parts),
         sp.srepr(spec.lagrangian),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.hessian_entries),
@@ -507,6 +512,8 @@ def render_module(
     loop = _kernel_section("backends/kernel_template.py")
     if spec.m:
         loop += _kernel_section("backends/constrained_template.py")
+    if spec.separable:
+        loop += _kernel_section("backends/separable_template.py")
     # newton's helpers are plain functions; the loop calls them from jitted code
     newton = newton.replace("\ndef ", "\n@kernel\ndef ")
     tail = [f"# end of generated kernel {key}", ""]

@@ -20,6 +20,7 @@ from .constraints import consistent_initial_state, project_momentum
 from .errors import ConvergenceError, DegenerateLagrangianError, InstabilityWarning
 from .method import Galerkin
 from .newton import CONVERGED, newton_solve
+from .separable import has_stage_form, separable_tables
 from .system import LagrangianSystem, is_regular
 from .trajectory import Trajectory
 
@@ -28,7 +29,7 @@ __all__ = ["Integrator"]
 # momenta that grow by more than this factor over a run signal an unstable step size
 INSTABILITY_GROWTH = 1e6
 # below this many stage unknowns the constant-mass iteration does not pay (measured)
-MIN_UNKNOWNS_CONSTANT_MASS = 6
+MIN_UNKNOWNS_CONSTANT_MASS = 3
 
 _STATUS_MESSAGES = {
     1: "Newton iteration did not converge",
@@ -122,6 +123,12 @@ class Integrator:
         - ``"linear"``: a Lagrangian quadratic in :math:`(q, v)` (constant
           Hessian) has linear stage equations: one LU factorisation per run and
           one triangular solve per step;
+        - ``"separable"``: any other :math:`L = \tfrac12 v^TMv + a(t)\cdot v + U(t, q)`
+          with constant :math:`M` and forces :math:`f(t, q)`: Newton on the
+          stage increments at the implicit quadrature points only
+          (:mod:`galerkin_vi.separable`; the :math:`s - 1` interior nodes for
+          collocated Lobatto, the :math:`s` points for Gauss), momenta updated
+          in increment form with compensated summation;
         - ``"newton"``: the general Newton iteration (also the NumPy backend).
         """
         if self.system.m:
@@ -139,33 +146,33 @@ class Integrator:
             return "explicit"
         if structure.quadratic:
             return "linear"
+        if has_stage_form(self.system):
+            return "separable"
         return "newton"
 
     @property
     def uses_constant_mass(self) -> bool:
-        r"""Whether the Newton loop starts each step with the constant-mass iteration.
+        r"""Whether the stage-form loop starts each step with the constant-mass iteration.
 
-        True with the compiled backend, ``specialize=True``, a constant
-        :math:`L_{vv} = M` and :math:`L_{qv} \equiv 0`: the stage equations are
-        iterated with the constant matrix :math:`\frac1h\sum_i b_i D_{i\nu}D_{i\mu} M`
-        (factorised once per run), one gradient and one triangular solve per
-        iteration, handing over to full Newton when it contracts by less than
-        a factor ``min(0.01 s n, 0.2)`` per iteration (large :math:`h\,\|L_{qq}\|`).
-        Used from :math:`s n \ge 6` stage unknowns: below that a full Newton step
-        costs little more than a cheap one (measured speed-ups per step against
-        full Newton: 0.9–1.2 at 2–4 unknowns, 1.2–1.6 on Kepler s = 4, 1.6–3.8 on
-        4- and 8-body problems; ``benchmarks/specialised_loops.py``).
+        True on the ``"separable"`` path (constant :math:`M`) with at least
+        ``MIN_UNKNOWNS_CONSTANT_MASS = 3`` unknowns (implicit points times
+        :math:`n`). The iteration matrix is then :math:`I \otimes M`, the
+        Jacobian without its :math:`h^2 L_{qq}` terms: an iteration is one
+        gradient per implicit point and one solve with :math:`M` (a division
+        when :math:`M` is diagonal), no Hessian and no LU. It contracts by
+        :math:`O(h^2\|M^{-1}L_{qq}\|)`; when an increment is not at least
+        ``min(0.01 u n, 0.2)`` times the one before, full Newton takes over
+        for the rest of the step and the next 64 steps. Measured time per step,
+        constant-mass over full Newton in the same loop (``galerkin-vi bench``
+        per-step pairs, both settings forced): 1.10–1.25 at 1–2 unknowns
+        (pendulum Lobatto(3), Kepler s = 1 Gauss and Lobatto(3); 0.88 on the
+        pendulum with 2 Gauss points), 0.70–0.84 from 3 unknowns (pendulum and
+        Kepler, s = 2–3, Gauss and Lobatto).
         """
-        structure = self.system.structure
-        return (
-            self.method.degree * self.system.n >= MIN_UNKNOWNS_CONSTANT_MASS
-            and self.kernel_path == "newton"
-            and self.backend == "numba"
-            and self.specialize
-            and structure.constant_mass
-            and structure.zero_Lqv
-            and structure.zero_fv
-        )
+        if self.kernel_path != "separable":
+            return False
+        unknowns = separable_tables(self.method).implicit.size * self.system.n
+        return unknowns >= MIN_UNKNOWNS_CONSTANT_MASS
 
     def __repr__(self) -> str:
         return f"Integrator({self.system!r}, {self.method!r}, backend={self.backend!r})"
@@ -348,6 +355,31 @@ class Integrator:
                 q0, p0_arr, t0, h, n_steps, int(save_every), prm, np.linalg.inv(mass), *outputs
             )
             worst, increment = 0.0, np.nan
+        elif path == "separable":
+            st = separable_tables(self.method)
+            status, done, saved, worst, increment = self._kernels.separable_kernel(
+                *args,
+                tb.b,
+                tb.c,
+                st.implicit,
+                st.known,
+                st.rest,
+                st.stage_p,
+                st.stage_a,
+                st.stage_force,
+                st.control_p,
+                st.control_a,
+                st.control_force,
+                st.Phi1,
+                st.extrapolation,
+                st.reuse_endpoint,
+                self.tol,
+                self.maxiter,
+                self.uses_constant_mass,
+                *outputs,
+                iterations,
+                iteration_total,
+            )
         elif path == "linear":
             status, done, saved = self._kernels.linear_kernel(
                 *args, tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation, *outputs
@@ -366,7 +398,6 @@ class Integrator:
                 tb.extrapolation,
                 self.tol,
                 self.maxiter,
-                self.uses_constant_mass,
                 *outputs,
                 iterations,
                 iteration_total,

@@ -278,9 +278,10 @@ def test_tolerance_sweeps_end_at_the_floor():
 
 
 def test_chain_cost_rows_and_growth():
-    rows = wp.chain_cost((10,), n_steps=20, repeats=1, log=lambda _: None)
+    # enough steps that the time per step stands out of the fixed cost of a call (~0.1 ms)
+    rows = wp.chain_cost((10,), n_steps=2000, repeats=3, log=lambda _: None)
     (row,) = rows
-    assert row["n_masses"] == 10 and row["gvi_ns_per_step"] > 0 and row["n_steps"] == 20
+    assert row["n_masses"] == 10 and row["gvi_ns_per_step"] > 0 and row["n_steps"] == 2000
     assert row["hw_gauss2_fixed_point_ns_per_step"] > 0
     fake = [{"n_masses": 100, "gvi_ns_per_step": 2.0}, {"n_masses": 1000, "gvi_ns_per_step": 24.0}]
     assert wp.chain_growth(fake) == 12.0

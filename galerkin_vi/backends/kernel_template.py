@@ -17,7 +17,7 @@ quadrature weights :math:`b_i`, tables :math:`\Phi_{i\nu} = \ell_\nu(c_i)` and
 
     G^\nu = \sum_i b_i \big[h\,\Phi_{i\nu} (L_q + f)^{(i)} + D_{i\nu} L_v^{(i)}\big],
     \qquad R^0 = p_k + G^0,\quad R^\nu = G^\nu\ (1 \le \nu < s),
-    \qquad p_{k+1} = G^s ,
+    \qquad p_{k+1} = G^s = p_k + h \sum_i b_i (L_q + f)^{(i)},
 
 where :math:`f` are the external forces (discrete Lagrange–d'Alembert; the
 point functions already return :math:`L_q + f` and :math:`L_{qq} + f_q`, and
@@ -64,14 +64,6 @@ STATUS_SINGULAR = 2
 STATUS_NONFINITE = 3
 # below this relative increment Newton has converged to a few ulps after one more step
 FREEZE = 1e-8
-# constant-mass iteration: switch to full Newton when an increment is not at least
-# MASS_CONTRACTION * (number of unknowns) times the one before, capped at
-# MASS_CONTRACTION_MAX: a full Newton step costs relatively more with more unknowns
-# (measured break-even: ~0.02 for 2 unknowns, >0.1 from about 10)
-MASS_CONTRACTION = 0.01
-MASS_CONTRACTION_MAX = 0.2
-# after a switch, steps that start with full Newton before the cheap iteration is retried
-MASS_RETRY = 64
 
 
 @kernel
@@ -188,6 +180,47 @@ def assemble_gradient(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G):
 
 
 @kernel
+def momentum_increment(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, out):
+    r"""out = h \sum_i b_i (L_q + f)^{(i)}, the step's momentum change; False if not finite.
+
+    Summing :math:`G^\nu` over all :math:`\nu` (:math:`\sum_\nu \ell_\nu = 1`,
+    :math:`\sum_\nu \ell_\nu' = 0`) shows that :math:`p_k` plus this is
+    :math:`G^s = p_{k+1}` once the stage equations hold. Formed as :math:`G^s`
+    directly, the new momentum is a sum of terms of the size of :math:`p` that
+    cancel down to it, with a rounding error of order :math:`\varepsilon|p|`
+    in every step; the increment is small, and :func:`compensated_add` carries
+    the rounding of its addition to the next step. Measured over 1e6 steps
+    (outer solar system, s = 3, h = 10 d): relative energy error in the last
+    tenth 5.2e-12 through :math:`G^s`, 9e-15 this way.
+    """
+    r = b.shape[0]
+    n = qk.shape[0]
+    for a in range(n):
+        out[a] = 0.0
+    for i in range(r):
+        interpolate(i, h, qk, C, Phi, D, Q, V)
+        point_gradient(0.0 if AUTONOMOUS else t0 + c[i] * h, Q, V, prm, Lq, Lv)
+        for a in range(n):
+            out[a] += b[i] * Lq[a]
+    finite = True
+    for a in range(n):
+        out[a] *= h
+        if not abs(out[a]) < 1e300:
+            finite = False
+    return finite
+
+
+@kernel
+def compensated_add(x, x_lost, y):
+    """x += y with Kahan compensation; ``x_lost`` carries each rounding error to the next."""
+    for a in range(x.shape[0]):
+        z = y[a] - x_lost[a]
+        total = x[a] + z
+        x_lost[a] = (total - x[a]) - z
+        x[a] = total
+
+
+@kernel
 def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K):
     """G as above and K[(nu, a), (mu, c)] = dG^nu_a / dq^mu_c, nu = 0..s-1, mu = 1..s.
 
@@ -224,30 +257,6 @@ def assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv
                     Lqv,
                     Fv,
                 )
-
-
-@kernel
-def assemble_mass_matrix(t0, h, q0, v0, prm, b, D, work, Kc):
-    r"""The constant part of the stage Jacobian when :math:`L_{vv} = M` is constant.
-
-    .. math::
-
-        K^{c}_{\nu\mu} = \frac1h \sum_i b_i D_{i\nu} D_{i\mu}\, M,
-        \qquad \nu = 0..s-1,\ \mu = 1..s,
-
-    i.e. the stage Jacobian without its :math:`h\,L_{qq}` terms.
-    """
-    Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = work
-    point_hessian(t0, q0, v0, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
-    r = b.shape[0]
-    s = D.shape[1] - 1
-    n = q0.shape[0]
-    Kc[:, :] = 0.0
-    for i in range(r):
-        for nu in range(s):
-            for mu in range(1, s + 1):
-                w = b[i] * D[i, nu] * D[i, mu] / h
-                add_block(Kc, nu, mu, s, n, w, Lvv, 0.0, Lqq, 0.0, 0.0, Lqv, Fv)
 
 
 @kernel
@@ -331,24 +340,16 @@ def extrapolate(C, C_prev, E):
 
 
 @kernel
-def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, Kc, pivc, cheap):
+def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work):
     r"""Newton on the stage equations; C[1:] holds the guess on entry, the solution on exit.
 
-    Three kinds of iteration share one stopping rule (increment zero or no
-    longer decreasing, once below ``tol``):
+    Full Newton with the exact Jacobian, assembled and factorised, until an
+    increment is below ``FREEZE * (1 + |C|)``: the next one is then at
+    round-off level, so the remaining iterations reuse the last LU factors and
+    evaluate only the gradient. The stopping rule: increment zero, or no longer
+    decreasing once below ``tol`` (:func:`newton_status`).
 
-    - with ``cheap`` set (constant mass matrix), the iteration matrix is the
-      constant :math:`K^c` of :func:`assemble_mass_matrix`, factorised once per
-      run, so an iteration is one gradient and one triangular solve. It
-      contracts by :math:`O(h^2\|L_{qq}\|/\|M\|)` per step; when an increment
-      is not ``MASS_CONTRACTION`` times the one before, full Newton takes over;
-    - full Newton: exact Jacobian, assembled and factorised;
-    - once a full Newton increment is below ``FREEZE * (1 + |C|)`` the next one
-      is at round-off level, so the remaining iterations reuse the last LU
-      factors and evaluate only the gradient.
-
-    Returns (status, iterations, last increment, last residual max-norm,
-    whether the cheap iteration had to hand over to full Newton).
+    Returns (status, iterations, last increment, last residual max-norm).
     """
     Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = work
     s1, n = C.shape
@@ -356,15 +357,13 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, Kc, pi
     previous = np.inf
     residual = np.inf
     frozen = False
-    switched = False
-    contraction = min(MASS_CONTRACTION_MAX, MASS_CONTRACTION * s * n)
     # increments are judged against the size of q = q_k + C: far from the origin the
     # round-off floor of C is that of q
     base = 0.0
     for a in range(n):
         base = max(base, abs(qk[a]))
     for it in range(1, maxiter + 1):
-        if frozen or cheap:
+        if frozen:
             assemble_gradient(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
         else:
             assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K)
@@ -376,13 +375,10 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, Kc, pi
                 if not abs(val) <= residual:  # also catches NaN
                     residual = abs(val)
         if not residual < 1e300:
-            return STATUS_NONFINITE, it, np.inf, residual, switched
-        if cheap:
-            solve_jacobian(Kc, pivc, s, R)
-        else:
-            if not frozen and not factor_jacobian(K, piv, s):
-                return STATUS_SINGULAR, it, np.inf, residual, switched
-            solve_jacobian(K, piv, s, R)
+            return STATUS_NONFINITE, it, np.inf, residual
+        if not frozen and not factor_jacobian(K, piv, s):
+            return STATUS_SINGULAR, it, np.inf, residual
+        solve_jacobian(K, piv, s, R)
         increment = 0.0
         size = 0.0
         for nu in range(1, s1):
@@ -393,26 +389,15 @@ def solve_stages(t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, Kc, pi
                     increment = abs(delta)
                 if abs(C[nu, a]) > size:
                     size = abs(C[nu, a])
-        if (
-            cheap
-            and it >= 2
-            and increment > contraction * previous
-            and increment > tol * (1.0 + size)
-        ):
-            # too slow at this h (or diverging): exact Jacobian from here on
-            cheap = False
-            switched = True
-            previous = np.inf
-            continue
         status = newton_status(increment, previous, 1.0 + max(size, base), tol, it, maxiter)
         if status == CONVERGED:
-            return STATUS_OK, it, increment, residual, switched
+            return STATUS_OK, it, increment, residual
         if status != CONTINUE:
-            return STATUS_NEWTON_FAILED, it, increment, residual, switched
-        if not cheap and increment <= FREEZE * (1.0 + size):
+            return STATUS_NEWTON_FAILED, it, increment, residual
+        if increment <= FREEZE * (1.0 + size):
             frozen = True
         previous = increment
-    return STATUS_NEWTON_FAILED, maxiter, previous, residual, switched
+    return STATUS_NEWTON_FAILED, maxiter, previous, residual
 
 
 @kernel
@@ -459,7 +444,6 @@ def integrate_kernel(
     E,
     tol,
     maxiter,
-    constant_mass,
     t_out,
     q_out,
     p_out,
@@ -474,10 +458,9 @@ def integrate_kernel(
     ``iteration_total[0]`` their sum: a long run with ``save_every`` stores
     nothing per step.
 
-    With ``constant_mass`` (the system's :math:`L_{vv}` is constant and
-    :math:`L_{qv} = 0`) the stage equations are first iterated with the
-    constant matrix of :func:`assemble_mass_matrix` (see :func:`solve_stages`).
-    Saves rows at steps k with k % save_every == 0 and at the last step.
+    The new momentum is :math:`p_k` plus :func:`momentum_increment`, added
+    with compensated summation like the positions. Saves rows at steps k with
+    k % save_every == 0 and at the last step.
     Returns (status, steps completed, rows saved, max residual, failing increment).
     """
     n = q0.shape[0]
@@ -485,13 +468,8 @@ def integrate_kernel(
     s1 = d.shape[0]
     s = s1 - 1
     work = make_work(s, n)
-    G = work[7]
-    Kc = new_jacobian(s, n)
-    pivc = np.zeros(s * n, dtype=np.int64)
-    if constant_mass:
-        assemble_mass_matrix(t0, h, q0, v0, prm, b, D, work, Kc)
-        constant_mass = factor_jacobian(Kc, pivc, s)
-    retry_in = 0
+    dp = np.zeros(n)  # the step's momentum change
+    p_lost = np.zeros(n)  # compensated summation of the momenta
     C = np.zeros((s1, n))
     C_prev = np.zeros((s1, n))
     qk = q0.copy()
@@ -507,33 +485,24 @@ def integrate_kernel(
         tk = t0 + k * h
         if k > 0:
             extrapolate(C, C_prev, E)
-        cheap = constant_mass and retry_in == 0
-        status, its, increment, residual, switched = solve_stages(
-            tk, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, Kc, pivc, cheap
+        status, its, increment, residual = solve_stages(
+            tk, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work
         )
-        if switched:
-            retry_in = MASS_RETRY
-        elif retry_in > 0:
-            retry_in -= 1
         slot = k // save_every
         if its > iterations_out[slot]:
             iterations_out[slot] = its
         iteration_total[0] += its
-        if status == STATUS_OK:
-            assemble_gradient(
-                tk, h, qk, C, prm, b, c, Phi, D, work[0], work[1], work[2], work[3], G
-            )
-            for a in range(n):
-                if not abs(G[s, a]) < 1e300:
-                    status = STATUS_NONFINITE
+        if status == STATUS_OK and not momentum_increment(
+            tk, h, qk, C, prm, b, c, Phi, D, work[0], work[1], work[2], work[3], dp
+        ):
+            status = STATUS_NONFINITE
         if status != STATUS_OK:
             if k % save_every != 0:  # keep the last good state, even if not due for saving
                 saved = save_row(saved, tk, qk, q_lost, turns, pk, out)
             return status, k, saved, worst, increment
         if residual > worst:
             worst = residual
-        for a in range(n):
-            pk[a] = G[s, a]
+        compensated_add(pk, p_lost, dp)
         advance_position(qk, q_lost, C, turns)
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             saved = save_row(saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, out)
@@ -675,6 +644,8 @@ def linear_kernel(
     s = s1 - 1
     work = make_work(s, n)
     Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = work
+    dp = np.zeros(n)
+    p_lost = np.zeros(n)
     C = np.zeros((s1, n))
     C_prev = np.zeros((s1, n))
     qk = q0.copy()
@@ -700,15 +671,14 @@ def linear_kernel(
         for nu in range(1, s1):
             for a in range(n):
                 C[nu, a] += R[unknown(nu - 1, a, s, n)]
-        assemble_gradient(tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
+        finite = momentum_increment(tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, dp)
         for a in range(n):
-            if not abs(G[s, a]) < 1e300 or not abs(C[s, a]) < 1e300:
+            if not finite or not abs(C[s, a]) < 1e300:
                 # keep the last good state (q_k, p_k), whether or not it was due for saving
                 if k % save_every != 0:
                     saved = save_row(saved, tk, qk, q_lost, turns, pk, out)
                 return STATUS_NONFINITE, k, saved
-        for a in range(n):
-            pk[a] = G[s, a]
+        compensated_add(pk, p_lost, dp)
         advance_position(qk, q_lost, C, turns)
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             saved = save_row(saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, out)

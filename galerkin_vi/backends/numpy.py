@@ -17,7 +17,9 @@ from ..system import LagrangianSystem
 __all__ = [
     "discrete_gradient",
     "discrete_hessian",
+    "compensated_sum",
     "integrate",
+    "momentum_increment",
     "solve_step",
     "save_row",
     "unwrapped",
@@ -56,6 +58,25 @@ def discrete_gradient(
     Lq, Lv = values[:, :n], values[:, n:]
     b = tables.b[:, None]
     return h * tables.Phi.T @ (b * Lq) + tables.D.T @ (b * Lv)
+
+
+def momentum_increment(
+    system: LagrangianSystem,
+    tables: MethodTables,
+    t0: float,
+    h: float,
+    qk: NDArray,
+    C: NDArray,
+    prm: NDArray,
+) -> NDArray:
+    r""":math:`h\sum_i b_i (L_q + f)^{(i)}`: :math:`G^s - p_k` once the stage equations hold.
+
+    The compiled loops add it to :math:`p_k` with compensated summation (see
+    ``kernel_template.momentum_increment``); so does :func:`integrate`.
+    """
+    t, Q, V = _points(tables, t0, h, qk, C)
+    Lq = system.evaluate("gradient", t, Q, V, prm)[:, : system.n]
+    return h * (tables.b @ Lq)
 
 
 def discrete_hessian(
@@ -157,6 +178,7 @@ def integrate(
     C = d[:, None] * h * v0[None, :]
     qk, pk = q0.copy(), p0.copy()
     q_lost = np.zeros_like(q0)
+    p_lost = np.zeros_like(q0)
     turns = np.zeros_like(q0)
     periodic = np.array(system.periodic, dtype=bool)
     wrap_angles(periodic, qk, q_lost, turns)
@@ -175,24 +197,29 @@ def integrate(
         iteration_total[0] += result.iterations
         status = 0 if result.status == CONVERGED else 1
         if status == 0:
-            p_next = discrete_gradient(system, tables, tk, h, qk, C, prm)[s]
-            status = 0 if np.all(np.isfinite(p_next)) else 3
+            dp = momentum_increment(system, tables, tk, h, qk, C, prm)
+            status = 0 if np.all(np.isfinite(dp)) else 3
         if status != 0:
             if k % save_every != 0:  # keep the last good state, even if not due for saving
                 save_row(saved, tk, qk, q_lost, turns, pk, periodic, *outputs)
                 saved += 1
             return status, k, saved, worst, result.increment
         worst = max(worst, result.residual)
-        # compensated (Kahan) summation of the position, as in the compiled kernel
-        y = C[s] - q_lost
-        total = qk + y
-        q_lost = (total - qk) - y
-        qk, pk = total, p_next
+        # compensated (Kahan) summation of position and momentum, as in the compiled kernel
+        qk, q_lost = compensated_sum(qk, q_lost, C[s])
+        pk, p_lost = compensated_sum(pk, p_lost, dp)
         wrap_angles(periodic, qk, q_lost, turns)
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             save_row(saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, periodic, *outputs)
             saved += 1
     return 0, n_steps, saved, worst, 0.0
+
+
+def compensated_sum(x: NDArray, lost: NDArray, y: NDArray) -> tuple[NDArray, NDArray]:
+    """(x + y, its rounding error) by Kahan's compensated summation; ``lost`` from the last call."""
+    z = y - lost
+    total = x + z
+    return total, (total - x) - z
 
 
 # 2 pi = TWO_PI_HI + TWO_PI_LO, both floats

@@ -1,0 +1,527 @@
+r"""The compiled time loop of the stage form, for separable Lagrangians.
+
+Appended (below the ``# ---- kernel ----`` marker) to the generated module of
+a system with :math:`L = \tfrac12 v^TMv + a(t)\cdot v + U(t, q)`, constant
+:math:`M` and forces independent of :math:`v`, after :mod:`.kernel_template`,
+whose storage helpers it reuses. The tables are those of
+:mod:`galerkin_vi.separable`: with :math:`F_j = (L_q + f)(t_k + c_j h, q_k + Z_j)`,
+the unknowns are the increments :math:`Z_i` at the implicit points,
+
+.. math::
+
+    R_i = M Z_i - h\,\hat c_i\, p_k - h \sum_j \hat Y_{ij} a_j
+          - h^2 \sum_j \hat W_{ij} F_j = 0,
+    \qquad \frac{\partial R_i}{\partial Z_j} = \delta_{ij} M - h^2 \hat W_{ij} (L_{qq} + f_q)_j,
+
+after which :math:`M C^\mu` follows from the same relation, :math:`q_{k+1} =
+q_k + C^s` and :math:`p_{k+1} = p_k + h\sum_j b_j F_j`, both added with
+compensated summation.
+"""
+
+# ruff: noqa: N803, N806
+from __future__ import annotations
+
+import numpy as np
+
+from ..newton import CONTINUE, CONVERGED, newton_status
+from .kernel_template import (
+    FREEZE,
+    STATUS_NEWTON_FAILED,
+    STATUS_NONFINITE,
+    STATUS_OK,
+    STATUS_SINGULAR,
+    add_block,
+    advance_position,
+    factor_jacobian,
+    new_jacobian,
+    save_row,
+    solve_jacobian,
+    unknown,
+    wrap_angles,
+)
+from .pointwise_interface import (
+    AUTONOMOUS,
+    BANDED,
+    HAS_PERIODIC,
+    NNZ,
+    PATTERN_COL,
+    PATTERN_ROW,
+    kernel,
+    point_gradient,
+    point_hessian,
+)
+
+# ---- kernel ----
+# constant-mass iteration: switch to full Newton when an increment is not at least
+# MASS_CONTRACTION * (number of unknowns) times the one before, capped at
+# MASS_CONTRACTION_MAX: a full Newton step costs relatively more with more unknowns
+# (measured break-even: ~0.02 for 2 unknowns, >0.1 from about 10)
+MASS_CONTRACTION = 0.01
+MASS_CONTRACTION_MAX = 0.2
+# after a switch, steps that start with full Newton before the cheap iteration is retried
+MASS_RETRY = 64
+
+
+@kernel
+def mass_times(M, mass_diagonal, x, out):
+    """out = M x for the constant mass matrix stored flat (dense or pattern order).
+
+    ``mass_diagonal`` holds the diagonal of a diagonal M (point masses, the
+    common case) and is empty otherwise.
+    """
+    n = x.shape[0]
+    if mass_diagonal.shape[0] > 0:
+        for a in range(n):
+            out[a] = mass_diagonal[a] * x[a]
+        return
+    if BANDED:
+        for a in range(n):
+            out[a] = 0.0
+        for k in range(NNZ):
+            out[PATTERN_ROW[k]] += M[k] * x[PATTERN_COL[k]]
+        return
+    for a in range(n):
+        acc = 0.0
+        for cc in range(n):
+            acc += M[a * n + cc] * x[cc]
+        out[a] = acc
+
+
+@kernel
+def solve_mass(KM, pivM, mass_diagonal, x):
+    """x <- M^{-1} x with the factors of :func:`separable_kernel`'s mass matrix."""
+    if mass_diagonal.shape[0] > 0:
+        for a in range(x.shape[0]):
+            x[a] /= mass_diagonal[a]
+        return
+    solve_jacobian(KM, pivM, 1, x)
+
+
+@kernel
+def diagonal_of(M, n):
+    """The diagonal of the flat-stored M if M is diagonal, else an empty array."""
+    diagonal = np.zeros(n)
+    if BANDED:
+        for k in range(NNZ):
+            if PATTERN_ROW[k] == PATTERN_COL[k]:
+                diagonal[PATTERN_ROW[k]] = M[k]
+            elif M[k] != 0.0:
+                return np.zeros(0)
+        return diagonal
+    for a in range(n):
+        for cc in range(n):
+            if a == cc:
+                diagonal[a] = M[a * n + cc]
+            elif M[a * n + cc] != 0.0:
+                return np.zeros(0)
+    return diagonal
+
+
+@kernel
+def stage_solve(
+    t0,
+    h,
+    qk,
+    Z,
+    offset,
+    prm,
+    c,
+    implicit,
+    force_table,
+    M,
+    KM,
+    pivM,
+    mass_diagonal,
+    tol,
+    maxiter,
+    work,
+    cheap,
+):
+    r"""Newton on the implicit stage increments Z (guess on entry, solution on exit).
+
+    ``offset[i]`` holds the known part :math:`h\hat c_i p_k + h\sum_j \hat Y_{ij}a_j
+    + h^2\sum_{j\ \mathrm{known}} \hat W_{ij}F_j`. The same three iterations as
+    :func:`solve_stages`: with ``cheap``, the iteration matrix is the
+    block-diagonal :math:`I \otimes M` (one solve with the constant :math:`M`
+    per stage, no Hessian), handing over to full Newton when it contracts too
+    slowly; full Newton; and the LU factors frozen once an increment is below
+    ``FREEZE``. Returns (status, iterations, last increment, residual, switched).
+    """
+    Q, zero, Lq, Lv, Lqq, Lqv, Lvv, Fv, F, K, R, piv, x, mz = work
+    u, n = Z.shape
+    previous = np.inf
+    residual = np.inf
+    frozen = False
+    switched = False
+    contraction = min(MASS_CONTRACTION_MAX, MASS_CONTRACTION * u * n)
+    base = 0.0
+    for a in range(n):
+        base = max(base, abs(qk[a]))
+    h2 = h * h
+    for it in range(1, maxiter + 1):
+        full = not (cheap or frozen)
+        if full:
+            K[:, :] = 0.0
+        for jl in range(u):
+            j = implicit[jl]
+            for a in range(n):
+                Q[a] = qk[a] + Z[jl, a]
+            tj = 0.0 if AUTONOMOUS else t0 + c[j] * h
+            if full:
+                point_hessian(tj, Q, zero, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
+                for il in range(u):
+                    add_block(
+                        K,
+                        il,
+                        jl + 1,
+                        u,
+                        n,
+                        1.0 if il == jl else 0.0,
+                        M,
+                        -h2 * force_table[il, j],
+                        Lqq,
+                        0.0,
+                        0.0,
+                        Lqv,
+                        Fv,
+                    )
+            else:
+                point_gradient(tj, Q, zero, prm, Lq, Lv)
+            for a in range(n):
+                F[j, a] = Lq[a]
+        residual = 0.0
+        for il in range(u):
+            for a in range(n):
+                x[a] = Z[il, a]
+            mass_times(M, mass_diagonal, x, mz)
+            for a in range(n):
+                acc = offset[il, a]
+                for jl in range(u):
+                    acc += h2 * force_table[il, implicit[jl]] * F[implicit[jl], a]
+                val = mz[a] - acc
+                R[unknown(il, a, u, n)] = -val
+                if not abs(val) <= residual:  # also catches NaN
+                    residual = abs(val)
+        if not residual < 1e300:
+            return STATUS_NONFINITE, it, np.inf, residual, switched
+        if cheap:
+            for il in range(u):
+                for a in range(n):
+                    x[a] = R[unknown(il, a, u, n)]
+                solve_mass(KM, pivM, mass_diagonal, x)
+                for a in range(n):
+                    R[unknown(il, a, u, n)] = x[a]
+        else:
+            if full and not factor_jacobian(K, piv, u):
+                return STATUS_SINGULAR, it, np.inf, residual, switched
+            solve_jacobian(K, piv, u, R)
+        increment = 0.0
+        size = 0.0
+        for il in range(u):
+            for a in range(n):
+                delta = R[unknown(il, a, u, n)]
+                Z[il, a] += delta
+                if abs(delta) > increment:
+                    increment = abs(delta)
+                if abs(Z[il, a]) > size:
+                    size = abs(Z[il, a])
+        if (
+            cheap
+            and it >= 2
+            and increment > contraction * previous
+            and increment > tol * (1.0 + size)
+        ):
+            cheap = False
+            switched = True
+            previous = np.inf
+            continue
+        status = newton_status(increment, previous, 1.0 + max(size, base), tol, it, maxiter)
+        if status == CONVERGED:
+            return STATUS_OK, it, increment, residual, switched
+        if status != CONTINUE:
+            return STATUS_NEWTON_FAILED, it, increment, residual, switched
+        if not cheap and increment <= FREEZE * (1.0 + size):
+            frozen = True
+        previous = increment
+    return STATUS_NEWTON_FAILED, maxiter, previous, residual, switched
+
+
+@kernel
+def separable_kernel(
+    q0,
+    p0,
+    v0,
+    t0,
+    h,
+    n_steps,
+    save_every,
+    prm,
+    b,
+    c,
+    implicit,
+    known,
+    rest,
+    stage_p,
+    stage_a,
+    stage_force,
+    control_p,
+    control_a,
+    control_force,
+    Phi1,
+    E,
+    reuse_endpoint,
+    tol,
+    maxiter,
+    cheap_first,
+    t_out,
+    q_out,
+    p_out,
+    turns_out,
+    iterations_out,
+    iteration_total,
+):
+    """Run ``n_steps`` steps of the stage form from (q0, p0); as :func:`integrate_kernel`.
+
+    ``cheap_first``: start each step with the constant-mass iteration (see
+    :func:`stage_solve`). Returns (status, steps completed, rows saved, max
+    residual, failing increment).
+    """
+    n = q0.shape[0]
+    r = b.shape[0]
+    s = control_p.shape[0]
+    u = implicit.shape[0]
+    out = (t_out, q_out, p_out, turns_out)
+    Q = np.zeros(n)
+    zero = np.zeros(n)
+    Lq = np.zeros(n)
+    Lv = np.zeros(n)
+    Lqq = np.zeros(NNZ)
+    Lqv = np.zeros(NNZ)
+    Lvv = np.zeros(NNZ)
+    Fv = np.zeros(1)
+    F = np.zeros((r, n))  # L_q + f at the quadrature points
+    A = np.zeros((r, n))  # a(t) = L_v(t, q, 0) at the quadrature points
+    K = new_jacobian(u, n)
+    R = np.zeros(u * n)
+    piv = np.zeros(u * n, dtype=np.int64)
+    x = np.zeros(n)
+    mz = np.zeros(n)
+    work = (Q, zero, Lq, Lv, Lqq, Lqv, Lvv, Fv, F, K, R, piv, x, mz)
+    Z = np.zeros((u, n))
+    C = np.zeros((s, n))
+    offset = np.zeros((u, n))
+    stage_gauge = np.zeros((u, n))
+    control_gauge = np.zeros((s, n))
+    # the constant mass matrix, factorised once as a one-stage "Jacobian"
+    point_hessian(t0, q0, zero, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
+    M = Lvv.copy()
+    KM = new_jacobian(1, n)
+    pivM = np.zeros(n, dtype=np.int64)
+    add_block(KM, 0, 1, 1, n, 1.0, M, 0.0, Lqq, 0.0, 0.0, Lqv, Fv)
+    mass_diagonal = diagonal_of(M, n)
+    qk = q0.copy()
+    q_lost = np.zeros(n)
+    p_lost = np.zeros(n)
+    turns = np.zeros(n)
+    if HAS_PERIODIC:
+        wrap_angles(qk, q_lost, turns)
+    pk = p0.copy()
+    saved = save_row(0, t0, qk, q_lost, turns, pk, out)
+    if not factor_jacobian(KM, pivM, 1):
+        return STATUS_SINGULAR, 0, saved, 0.0, np.inf
+    for il in range(u):
+        for a in range(n):
+            Z[il, a] = c[implicit[il]] * h * v0[a]
+    h2 = h * h
+    worst = 0.0
+    retry_in = 0
+    have_start_force = False
+    for k in range(n_steps):
+        tk = t0 + k * h
+        if k == 0 or not AUTONOMOUS:
+            for j in range(r):
+                point_gradient(0.0 if AUTONOMOUS else tk + c[j] * h, qk, zero, prm, Lq, Lv)
+                for a in range(n):
+                    A[j, a] = Lv[a]
+        if not (AUTONOMOUS and reuse_endpoint and have_start_force):
+            for jk in range(known.shape[0]):
+                j = known[jk]
+                point_gradient(0.0 if AUTONOMOUS else tk + c[j] * h, qk, zero, prm, Lq, Lv)
+                for a in range(n):
+                    F[j, a] = Lq[a]
+        if k == 0 or not AUTONOMOUS:
+            # h sum_j Y_ij a_j (stages) and h sum_j Y_mu,j a_j (control points): with t
+            # absent, a is constant and so are these
+            for il in range(u):
+                for a in range(n):
+                    acc = 0.0
+                    for j in range(r):
+                        acc += stage_a[il, j] * A[j, a]
+                    stage_gauge[il, a] = h * acc
+            for mu in range(s):
+                for a in range(n):
+                    acc = 0.0
+                    for j in range(r):
+                        acc += control_a[mu, j] * A[j, a]
+                    control_gauge[mu, a] = h * acc
+        for il in range(u):
+            for a in range(n):
+                acc = h * stage_p[il] * pk[a] + stage_gauge[il, a]
+                for jk in range(known.shape[0]):
+                    acc += h2 * stage_force[il, known[jk]] * F[known[jk], a]
+                offset[il, a] = acc
+        cheap = cheap_first and retry_in == 0
+        status, its, increment, residual, switched = STATUS_OK, 0, 0.0, 0.0, False
+        if u > 0:
+            status, its, increment, residual, switched = stage_solve(
+                tk,
+                h,
+                qk,
+                Z,
+                offset,
+                prm,
+                c,
+                implicit,
+                stage_force,
+                M,
+                KM,
+                pivM,
+                mass_diagonal,
+                tol,
+                maxiter,
+                work,
+                cheap,
+            )
+        if switched:
+            retry_in = MASS_RETRY
+        elif retry_in > 0:
+            retry_in -= 1
+        slot = k // save_every
+        if its > iterations_out[slot]:
+            iterations_out[slot] = its
+        iteration_total[0] += its
+        if status == STATUS_OK:
+            status = finish_step(
+                tk,
+                h,
+                qk,
+                pk,
+                Z,
+                C,
+                control_gauge,
+                F,
+                prm,
+                b,
+                c,
+                implicit,
+                rest,
+                control_p,
+                control_force,
+                Phi1,
+                KM,
+                pivM,
+                mass_diagonal,
+                work,
+            )
+        if status != STATUS_OK:
+            if k % save_every != 0:  # keep the last good state, even if not due for saving
+                saved = save_row(saved, tk, qk, q_lost, turns, pk, out)
+            return status, k, saved, worst, increment
+        if residual > worst:
+            worst = residual
+        # p_{k+1} = p_k + h sum_j b_j F_j, compensated like the positions
+        for a in range(n):
+            acc = 0.0
+            for j in range(r):
+                acc += b[j] * F[j, a]
+            y = h * acc - p_lost[a]
+            total = pk[a] + y
+            p_lost[a] = (total - pk[a]) - y
+            pk[a] = total
+        if reuse_endpoint:
+            for a in range(n):
+                F[0, a] = F[r - 1, a]
+            have_start_force = True
+        advance_position(qk, q_lost, C, turns)
+        # next guess: this step's polynomial at the next step's implicit points
+        for il in range(u):
+            for a in range(n):
+                acc = 0.0
+                for mu in range(s):
+                    acc += E[il, mu] * C[mu, a]
+                Z[il, a] = acc - C[s - 1, a]
+        if (k + 1) % save_every == 0 or k + 1 == n_steps:
+            saved = save_row(saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, out)
+    return STATUS_OK, n_steps, saved, worst, 0.0
+
+
+@kernel
+def finish_step(
+    tk,
+    h,
+    qk,
+    pk,
+    Z,
+    C,
+    control_gauge,
+    F,
+    prm,
+    b,
+    c,
+    implicit,
+    rest,
+    control_p,
+    control_force,
+    Phi1,
+    KM,
+    pivM,
+    mass_diagonal,
+    work,
+):
+    r"""After convergence: forces at the solution, the control points, the remaining forces.
+
+    :math:`M C^\mu = h\hat c_\mu p_k + h\sum_j \hat Y_{\mu j}a_j + h^2\sum_j
+    \hat W_{\mu j}F_j` (the middle term given as ``control_gauge``), then
+    :math:`F` at the points that are explicit once :math:`C` is known.
+    Returns a status (non-finite values are a failure).
+    """
+    Q, zero, Lq, Lv = work[0], work[1], work[2], work[3]
+    x = work[12]
+    u, n = Z.shape
+    s = C.shape[0]
+    r = b.shape[0]
+    h2 = h * h
+    for jl in range(u):
+        j = implicit[jl]
+        for a in range(n):
+            Q[a] = qk[a] + Z[jl, a]
+        point_gradient(0.0 if AUTONOMOUS else tk + c[j] * h, Q, zero, prm, Lq, Lv)
+        for a in range(n):
+            F[j, a] = Lq[a]
+    for mu in range(s):
+        for a in range(n):
+            acc = 0.0
+            for j in range(r):
+                acc += control_force[mu, j] * F[j, a]
+            acc = h * control_p[mu] * pk[a] + control_gauge[mu, a] + h2 * acc
+            x[a] = acc
+        solve_mass(KM, pivM, mass_diagonal, x)
+        for a in range(n):
+            C[mu, a] = x[a]
+    for jr in range(rest.shape[0]):
+        j = rest[jr]
+        for a in range(n):
+            acc = 0.0
+            for mu in range(s):
+                acc += Phi1[j, mu] * C[mu, a]
+            Q[a] = qk[a] + acc
+        point_gradient(0.0 if AUTONOMOUS else tk + c[j] * h, Q, zero, prm, Lq, Lv)
+        for a in range(n):
+            F[j, a] = Lq[a]
+    for a in range(n):
+        if not abs(C[s - 1, a]) < 1e300:
+            return STATUS_NONFINITE
+        for j in range(r):
+            if not abs(F[j, a]) < 1e300:
+                return STATUS_NONFINITE
+    return STATUS_OK

@@ -1,0 +1,194 @@
+r"""Stage form of the Galerkin method for separable Lagrangians.
+
+For :math:`L = \tfrac12 v^TMv + a(t)\cdot v + U(t, q)` with a constant,
+regular :math:`M` (and forces :math:`f(t, q)` that do not depend on
+:math:`v`), the velocity enters the stage equations linearly, and they can be
+solved for the control points. Write :math:`F_i = (L_q + f)(t_k + c_i h, Q_i)`
+and :math:`a_i = a(t_k + c_i h)` at the quadrature points, :math:`C^\mu =
+q^\mu - q_k` (:math:`\mu = 1..s`) and
+
+.. math::
+
+    \tilde S_{\nu\mu} = \sum_i b_i D_{i\nu} D_{i\mu},
+    \qquad \nu = 0..s-1,\ \mu = 1..s,\qquad T = \tilde S^{-1}.
+
+Then :math:`G^\nu + \delta_{\nu0}p_k = 0` (:math:`\nu < s`) reads
+
+.. math::
+
+    M C^\mu = h\,\hat c_\mu\, p_k + h \sum_i \hat Y_{\mu i}\, a_i
+              + h^2 \sum_i \hat W_{\mu i}\, F_i,
+
+    \hat c = -T e_0,\quad
+    \hat Y = -T D_{:,0:s}^T \operatorname{diag}(b),\quad
+    \hat W = -T \Phi_{:,0:s}^T \operatorname{diag}(b),
+
+and the stage increments :math:`Z_i = Q_i - q_k = \sum_\mu \Phi_{i\mu} C^\mu`
+satisfy the same relation with the tables multiplied by :math:`\Phi_{:,1:s}`.
+Only the points whose force enters some :math:`C^\mu` and whose position is
+not :math:`q_k` itself are unknowns of the Newton iteration (the implicit
+points). For Gauss quadrature these are all :math:`s` points and the tables
+are :math:`c` and :math:`A^2` of the collocation method; for collocated Lobatto
+quadrature they are the :math:`s - 1` interior nodes (the first node is
+:math:`q_k`, and the last one, :math:`q_{k+1}`, is explicit once they are
+known: the Lobatto IIIA–IIIB pair). Summing all :math:`G^\nu` (partition of
+unity, :math:`\sum_\nu \ell_\nu = 1`) gives the new momentum in increment form,
+
+.. math::
+
+    p_{k+1} = G^s = p_k + h \sum_i b_i F_i,
+
+which the loop adds with compensated summation.
+
+All tables are computed at 40 digits from the exact method tables and rounded once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mpmath
+import numpy as np
+from numpy.typing import NDArray
+
+from .basis import lagrange_tables_mp
+from .method import Galerkin
+
+__all__ = ["SeparableTables", "has_stage_form", "separable_tables"]
+
+_DIGITS = 40
+
+
+@dataclass(frozen=True)
+class SeparableTables:
+    r"""Tables of the stage form (module docstring), rounded once from 40 digits.
+
+    Attributes
+    ----------
+    implicit : ndarray of int, shape (u,)
+        Quadrature points whose stage increments are Newton unknowns.
+    known : ndarray of int
+        Points at :math:`q_k` itself (:math:`\Phi_{i,1:s} = 0`).
+    rest : ndarray of int
+        The remaining points: explicit once the control points are known.
+    stage_p, stage_a, stage_force : ndarray, shapes (u,), (u, r), (u, r)
+        :math:`\Phi\hat c`, :math:`\Phi\hat Y`, :math:`\Phi\hat W` at the implicit points.
+    control_p, control_a, control_force : ndarray, shapes (s,), (s, r), (s, r)
+        :math:`\hat c`, :math:`\hat Y`, :math:`\hat W` (rows :math:`\mu = 1..s`).
+    Phi1 : ndarray, shape (r, s)
+        :math:`\Phi_{i\mu}`, :math:`\mu = 1..s`.
+    extrapolation : ndarray, shape (u, s)
+        :math:`\ell_\mu(1 + c_i)` at the implicit points: the previous step's
+        polynomial as the initial guess.
+    reuse_endpoint : bool
+        The first point is :math:`q_k` and the last is :math:`q_{k+1}`
+        (Lobatto quadrature, collocated ends), so the force at the end of one
+        step is the force at the start of the next (autonomous systems).
+    """
+
+    implicit: NDArray[np.int64]
+    known: NDArray[np.int64]
+    rest: NDArray[np.int64]
+    stage_p: NDArray[np.float64]
+    stage_a: NDArray[np.float64]
+    stage_force: NDArray[np.float64]
+    control_p: NDArray[np.float64]
+    control_a: NDArray[np.float64]
+    control_force: NDArray[np.float64]
+    Phi1: NDArray[np.float64]
+    extrapolation: NDArray[np.float64]
+    reuse_endpoint: bool
+
+
+def has_stage_form(system) -> bool:
+    r"""Whether ``system`` gets the compiled stage-form loop.
+
+    Separable (constant :math:`L_{vv}`, :math:`L_{qv} \equiv 0`), forces free
+    of :math:`v`, no constraints, and not quadratic (a quadratic Lagrangian
+    has the cheaper one-solve loop).
+    """
+    structure = system.structure
+    return bool(
+        structure.separable and structure.zero_fv and not structure.quadratic and system.m == 0
+    )
+
+
+def _matrix(rows) -> mpmath.matrix:
+    return mpmath.matrix([list(r) for r in rows])
+
+
+def separable_tables(method: Galerkin) -> SeparableTables:
+    """The stage-form tables of ``method`` (cached on the method)."""
+    cached = method.__dict__.get("_separable_tables")
+    if cached is None:
+        cached = _compute(method)
+        method.__dict__["_separable_tables"] = cached
+    return cached
+
+
+def _compute(method: Galerkin) -> SeparableTables:
+    s = method.degree
+    exact = method.exact_tables(_DIGITS)
+    with mpmath.workdps(_DIGITS + 10):
+        b, c = exact.b, exact.c
+        r = len(b)
+        Phi = _matrix(exact.Phi)  # r x (s + 1)
+        D = _matrix(exact.D)
+        S = mpmath.matrix(s, s)
+        for nu in range(s):
+            for mu in range(s):
+                S[nu, mu] = mpmath.fsum(b[i] * D[i, nu] * D[i, mu + 1] for i in range(r))
+        T = S**-1
+        control_p = mpmath.matrix(s, 1)
+        control_a = mpmath.matrix(s, r)
+        control_force = mpmath.matrix(s, r)
+        for mu in range(s):
+            control_p[mu] = -T[mu, 0]
+            for i in range(r):
+                control_a[mu, i] = -mpmath.fsum(T[mu, nu] * D[i, nu] * b[i] for nu in range(s))
+                control_force[mu, i] = -mpmath.fsum(
+                    T[mu, nu] * Phi[i, nu] * b[i] for nu in range(s)
+                )
+        Phi1 = mpmath.matrix(r, s)
+        for i in range(r):
+            for mu in range(s):
+                Phi1[i, mu] = Phi[i, mu + 1]
+        stage_p = Phi1 * control_p
+        stage_a = Phi1 * control_a
+        stage_force = Phi1 * control_force
+        tiny = mpmath.mpf(10) ** (-_DIGITS + 5)
+        moves = [any(abs(Phi1[i, mu]) > tiny for mu in range(s)) for i in range(r)]
+        drives = [any(abs(control_force[mu, i]) > tiny for mu in range(s)) for i in range(r)]
+        implicit = [i for i in range(r) if moves[i] and drives[i]]
+        known = [i for i in range(r) if not moves[i]]
+        rest = [i for i in range(r) if moves[i] and not drives[i]]
+        d = exact.d
+        E, _ = lagrange_tables_mp(d, [1 + c[i] for i in implicit], _DIGITS)
+        last_is_end = r - 1 in rest and all(
+            abs(Phi1[r - 1, mu] - (mu == s - 1)) <= tiny for mu in range(s)
+        )
+        reuse_endpoint = bool(c[0] == 0 and 0 in known and last_is_end)
+
+    def rounded(m, rows, cols=None) -> NDArray[np.float64]:
+        if cols is None:
+            return np.array([float(m[i]) for i in rows], dtype=float)
+        return np.array([[float(m[i, j]) for j in cols] for i in rows], dtype=float).reshape(
+            len(rows), len(cols)
+        )
+
+    return SeparableTables(
+        implicit=np.array(implicit, dtype=np.int64),
+        known=np.array(known, dtype=np.int64),
+        rest=np.array(rest, dtype=np.int64),
+        stage_p=rounded(stage_p, implicit),
+        stage_a=rounded(stage_a, implicit, range(r)),
+        stage_force=rounded(stage_force, implicit, range(r)),
+        control_p=rounded(control_p, range(s)),
+        control_a=rounded(control_a, range(s), range(r)),
+        control_force=rounded(control_force, range(s), range(r)),
+        Phi1=rounded(Phi1, range(r), range(s)),
+        extrapolation=np.array(
+            [[float(E[k][mu + 1]) for mu in range(s)] for k in range(len(implicit))], dtype=float
+        ).reshape(len(implicit), s),
+        reuse_endpoint=reuse_endpoint,
+    )
