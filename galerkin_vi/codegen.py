@@ -69,6 +69,7 @@ class KernelSpec:
     m: int = 0
     periodic: tuple[bool, ...] = ()
     separable: bool = False
+    diagonal_mass: bool = False
     constraint_entries: tuple[tuple[str, sp.Expr], ...] = ()
     constraint_jacobian_entries: tuple[tuple[str, sp.Expr], ...] = ()
     constraint_rate_entries: tuple[tuple[str, sp.Expr], ...] = ()
@@ -172,6 +173,8 @@ def kernel_spec(system: LagrangianSystem) -> KernelSpec:
         has_fv=has_fv,
         periodic=system.periodic,
         separable=has_stage_form(system),
+        diagonal_mass=system.structure.constant_mass
+        and all(a == b for (a, b), e in p.Lvv.todok().items() if e != 0),
         **_constraint_entries(system, rename),
     )
 
@@ -227,7 +230,16 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
         backend_version,
         sys.version,
         repr((spec.n, spec.n_params, spec.autonomous, spec.has_Lqv, spec.banded, spec.has_fv)),
-        repr((spec.half_bandwidth, spec.pattern, spec.m, spec.periodic, spec.separable)),
+        repr(
+            (
+                spec.half_bandwidth,
+                spec.pattern,
+                spec.m,
+                spec.periodic,
+                spec.separable,
+                spec.diagonal_mass,
+            )
+        ),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.constraint_parts),
         sp.srepr(spec.lagrangian),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.hessian_entries),
@@ -482,6 +494,7 @@ def render_module(
         f"AUTONOMOUS = {spec.autonomous}",
         f"HAS_LQV = {spec.has_Lqv}",
         f"HAS_FV = {spec.has_fv}",
+        f"DIAGONAL_MASS = {spec.diagonal_mass}",
         f"M_CONSTRAINTS = {spec.m}",
         f"HAS_PERIODIC = {any(spec.periodic)}",
         "PERIODIC = np.array([{}], dtype=np.bool_)".format(

@@ -351,11 +351,8 @@ class Integrator:
             mass = system.evaluate("Lvv", t0, q0, np.zeros(n), prm).reshape(n, n)
             if not is_regular(mass):
                 raise DegenerateLagrangianError(f"the mass matrix d2L/dv2 = {mass} is singular")
-            inverse = np.linalg.inv(mass)
-            if not np.any(mass - np.diag(np.diag(mass))):
-                inverse = (1.0 / np.diag(mass))[None, :]  # point masses: n, not n^2, per step
             status, done, saved = self._kernels.verlet_kernel(
-                q0, p0_arr, t0, h, n_steps, int(save_every), prm, inverse, *outputs
+                q0, p0_arr, t0, h, n_steps, int(save_every), prm, np.linalg.inv(mass), *outputs
             )
             worst, increment = 0.0, np.nan
         elif path == "separable":

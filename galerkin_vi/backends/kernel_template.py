@@ -42,6 +42,7 @@ from .pointwise_interface import (
     AUTONOMOUS,
     BAND,
     BANDED,
+    DIAGONAL_MASS,
     HAS_FV,
     HAS_LQV,
     HAS_PERIODIC,
@@ -536,8 +537,7 @@ def verlet_kernel(q0, p0, t0, h, n_steps, save_every, prm, Minv, t_out, q_out, p
     r"""Degree 1, two Lobatto points, separable :math:`L = \tfrac12 v^TMv + a(t)\cdot v - V(t, q)`.
 
     The stage equation is linear in :math:`q_{k+1}` and solved in closed form
-    (Störmer–Verlet), with :math:`M^{-1}` computed once (``Minv`` of shape
-    (1, n) holds the diagonal of a diagonal :math:`M^{-1}`):
+    (Störmer–Verlet), with :math:`M^{-1}` computed once:
 
     .. math::
 
@@ -583,8 +583,8 @@ def verlet_kernel(q0, p0, t0, h, n_steps, save_every, prm, Minv, t_out, q_out, p
             turns_before[a] = turns[a]
             rhs[a] = pk[a] + 0.5 * h * lq[a] - 0.5 * (a0[a] + a1[a])
         for a in range(n):
-            if Minv.shape[0] == 1:  # diagonal M: its inverse's diagonal as one row
-                acc = Minv[0, a] * rhs[a]
+            if DIAGONAL_MASS:  # point masses: n, not n^2, per step
+                acc = Minv[a, a] * rhs[a]
             else:
                 acc = 0.0
                 for b in range(n):

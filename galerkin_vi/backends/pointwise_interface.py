@@ -19,6 +19,7 @@ import numpy as np
 
 HAS_LQV = True  # False when d2L/dq dv is identically zero: the kernel skips that block
 HAS_FV = False  # True when the forces depend on v: df/dv is written into Fv
+DIAGONAL_MASS = False  # True when L_vv is a constant diagonal matrix (point masses)
 AUTONOMOUS = False  # True when L does not depend on t: no time is formed or passed
 # coordinates in which L, the forces and the constraints are 2 pi-periodic (angles):
 # the loops keep them in [-pi, pi) and count the whole turns removed
