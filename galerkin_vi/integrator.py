@@ -52,7 +52,8 @@ class Integrator:
         independent reference. ``"auto"`` picks numba when available.
     tol : float
         Relative Newton increment tolerance; below it the iteration continues
-        until the increment is zero or stops decreasing (no round-off drift).
+        until the increment is zero (below eps^2 |q|) or stops decreasing (no
+        round-off drift).
     maxiter : int
         Newton iteration cap per step (at most 255).
     specialize : bool
@@ -111,7 +112,7 @@ class Integrator:
 
     @property
     def kernel_path(self) -> str:
-        r"""Which time loop runs: ``"constrained"``, ``"explicit"``, ``"linear"`` or ``"newton"``.
+        r"""Which time loop runs: constrained, explicit, linear, separable or newton.
 
         ``"constrained"`` for every system with constraints (multipliers in the
         stage equations, momentum projected at each step's end; both backends).

@@ -5,7 +5,8 @@ notes: a relative increment tolerance alone cannot be met once
 :math:`\kappa(K)\,\varepsilon` exceeds it, and stopping as soon as the increment
 is a few ulps leaves a systematic energy drift over long runs. So, once the
 increment :math:`\|\Delta X\|_\infty` is below :math:`\mathrm{tol}\,(1+\|X\|_\infty)`,
-the iteration goes on until the increment is exactly zero or stops decreasing.
+the iteration goes on until the increment is zero (below
+:math:`\varepsilon^2(1+\|X\|_\infty)`, ``NEGLIGIBLE``) or stops decreasing.
 An increment that stops decreasing above the tolerance but within ``STAGNATION``
 times it is the round-off floor :math:`\kappa(K)\,\varepsilon` of an
 ill-conditioned step and is accepted too.

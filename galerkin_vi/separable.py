@@ -27,9 +27,10 @@ and the stage increments :math:`Z_i = Q_i - q_k = \sum_\mu \Phi_{i\mu} C^\mu`
 satisfy the same relation with the tables multiplied by :math:`\Phi_{:,1:s}`.
 Only the points whose force enters some :math:`C^\mu` and whose position is
 not :math:`q_k` itself are unknowns of the Newton iteration (the implicit
-points). For Gauss quadrature these are all :math:`s` points and the tables
-are :math:`c` and :math:`A^2` of the collocation method; for collocated Lobatto
-quadrature they are the :math:`s - 1` interior nodes (the first node is
+points). For Gauss quadrature these are all its points (with
+``gauss_legendre(s)`` the tables are :math:`c` and :math:`A^2` of
+:math:`s`-stage collocation); for collocated Lobatto quadrature they are the
+:math:`s - 1` interior nodes (the first node is
 :math:`q_k`, and the last one, :math:`q_{k+1}`, is explicit once they are
 known: the Lobatto IIIA–IIIB pair). Summing all :math:`G^\nu` (partition of
 unity, :math:`\sum_\nu \ell_\nu = 1`) gives the new momentum in increment form,

@@ -640,7 +640,8 @@ def linear_kernel(
 
     The Jacobian K is assembled and LU-factorised once per run; each step is
     one residual evaluation at the extrapolated guess and one triangular solve,
-    exact up to round-off. Returns (status, steps completed, rows saved).
+    exact up to round-off, then :func:`momentum_increment` for the new
+    momentum. Returns (status, steps completed, rows saved).
     """
     n = q0.shape[0]
     out = (t_out, q_out, p_out, turns_out)

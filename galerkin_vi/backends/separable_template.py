@@ -53,7 +53,7 @@ from .pointwise_interface import (
 )
 
 # ---- kernel ----
-# constant-mass iteration: switch to full Newton when an increment is not at least
+# constant-mass iteration: switch to full Newton when an increment is more than
 # MASS_CONTRACTION * (number of unknowns) times the one before, capped at
 # MASS_CONTRACTION_MAX: a full Newton step costs relatively more with more unknowns
 # (measured break-even: ~0.02 for 2 unknowns, >0.1 from about 10)
@@ -136,12 +136,15 @@ def stage_solve(
     r"""Newton on the implicit stage increments Z (guess on entry, solution on exit).
 
     ``offset[i]`` holds the known part :math:`h\hat c_i p_k + h\sum_j \hat Y_{ij}a_j
-    + h^2\sum_{j\ \mathrm{known}} \hat W_{ij}F_j`. The same three iterations as
-    :func:`solve_stages`: with ``cheap``, the iteration matrix is the
-    block-diagonal :math:`I \otimes M` (one solve with the constant :math:`M`
-    per stage, no Hessian), handing over to full Newton when it contracts too
-    slowly; full Newton; and the LU factors frozen once an increment is below
-    ``FREEZE``. Returns (status, iterations, last increment, residual, switched).
+    + h^2\sum_{j\ \mathrm{known}} \hat W_{ij}F_j` (the tables here carry the
+    factor :math:`\Phi` of the stage points). Three iterations share
+    :func:`newton_status`'s stopping rule: with ``cheap``, the iteration matrix
+    is the block-diagonal :math:`I \otimes M` (one solve with the constant
+    :math:`M` per stage, no Hessian), handing over to full Newton when it
+    contracts too slowly, fails, or has used half of ``maxiter``; full Newton;
+    and, as in :func:`solve_stages`, the LU factors frozen once an increment is
+    below ``FREEZE``. Returns (status, iterations, last increment, residual,
+    switched).
     """
     Q, zero, Lq, Lv, Lqq, Lqv, Lvv, Fv, F, K, R, piv, x, mz = work
     u, n = Z.shape
@@ -221,19 +224,22 @@ def stage_solve(
                     increment = abs(delta)
                 if abs(Z[il, a]) > size:
                     size = abs(Z[il, a])
-        if (
-            cheap
-            and it >= 2
-            and increment > contraction * previous
-            and increment > tol * (1.0 + size)
-        ):
+        scale = 1.0 + max(size, base)
+        if cheap and it >= 2 and increment > contraction * previous and increment > tol * scale:
+            # too slow at this h (or diverging): exact Jacobian from here on
             cheap = False
             switched = True
             previous = np.inf
             continue
-        status = newton_status(increment, previous, 1.0 + max(size, base), tol, it, maxiter)
+        status = newton_status(increment, previous, scale, tol, it, maxiter)
         if status == CONVERGED:
             return STATUS_OK, it, increment, residual, switched
+        if cheap and (status != CONTINUE or 2 * it >= maxiter):
+            # the cheap iteration leaves full Newton at least half of the iterations
+            cheap = False
+            switched = True
+            previous = np.inf
+            continue
         if status != CONTINUE:
             return STATUS_NEWTON_FAILED, it, increment, residual, switched
         if not cheap and increment <= FREEZE * (1.0 + size):
@@ -438,7 +444,7 @@ def separable_kernel(
             for a in range(n):
                 F[0, a] = F[r - 1, a]
             have_start_force = True
-        advance_position(qk, q_lost, C, turns)
+        advance_position(qk, q_lost, C, turns)  # adds C[s - 1], the last row: C^s
         # next guess: this step's polynomial at the next step's implicit points
         for il in range(u):
             for a in range(n):
