@@ -52,8 +52,8 @@ class Integrator:
         independent reference. ``"auto"`` picks numba when available.
     tol : float
         Relative Newton increment tolerance; below it the iteration continues
-        until the increment is zero (below eps^2 |q|) or stops decreasing (no
-        round-off drift).
+        until the increment is zero (below eps**2 times the size of q) or stops
+        decreasing (no round-off drift).
     maxiter : int
         Newton iteration cap per step (at most 255).
     specialize : bool
