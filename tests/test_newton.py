@@ -121,6 +121,11 @@ def test_non_finite_residual_is_diverged():
     ("increment", "previous", "scale", "iteration", "maxiter", "expected"),
     [
         (0.0, 1e-3, 1.0, 2, 30, CONVERGED),  # exactly zero
+        # below eps^2 (1 + |X|) it counts as zero, though still decreasing: only
+        # coordinates far below an ulp of |X| would change (a chain at rest at its far end)
+        (1e-40, 1e-35, 1.0, 4, 30, CONVERGED),
+        (1e-30, 1e-26, 1e3, 4, 30, CONVERGED),
+        (1e-31, 1e-26, 1.0, 4, 30, CONTINUE),  # above eps^2 = 4.9e-32 and decreasing
         (1e-16, 1e-17, 1.0, 4, 30, CONVERGED),  # small and no longer decreasing
         (1e-16, 1e-16, 1.0, 4, 30, CONVERGED),  # stagnating at equality
         (1e-16, 1e-9, 1.0, 4, 30, CONTINUE),  # small but still decreasing: keep going

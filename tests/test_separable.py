@@ -14,8 +14,8 @@ import pytest
 import sympy as sp
 
 import galerkin_vi as gvi
+from galerkin_vi import codegen, problems
 from galerkin_vi import integrator as integrator_module
-from galerkin_vi import problems
 from galerkin_vi.bench.handwritten import gauss_tables, lobatto_tables
 from galerkin_vi.separable import has_stage_form, separable_tables
 
@@ -80,6 +80,14 @@ def test_tables_reproduce_constant_acceleration_exactly(method):
 
 
 # ---------------------------------------------------------------- which loop
+def test_diagonal_mass_is_a_compile_time_constant():
+    # point masses divide instead of solving with M; the non-diagonal case keeps the solve
+    assert codegen.kernel_spec(problems.pendulum().system).diagonal_mass
+    assert codegen.kernel_spec(problems.outer_solar_system().system).diagonal_mass
+    assert not codegen.kernel_spec(_coupled_mass()[0]).diagonal_mass
+    assert not codegen.kernel_spec(problems.double_pendulum().system).diagonal_mass  # M(q)
+
+
 def test_stage_form_follows_structure():
     assert has_stage_form(problems.pendulum().system)
     assert has_stage_form(problems.outer_solar_system().system)

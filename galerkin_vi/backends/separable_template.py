@@ -32,6 +32,7 @@ from .kernel_template import (
     STATUS_SINGULAR,
     add_block,
     advance_position,
+    compensated_add,
     factor_jacobian,
     new_jacobian,
     save_row,
@@ -314,13 +315,14 @@ def separable_kernel(
     offset = np.zeros((u, n))
     stage_gauge = np.zeros((u, n))
     control_gauge = np.zeros((s, n))
-    # the constant mass matrix, factorised once as a one-stage "Jacobian"
+    # the constant mass matrix, factorised once as a one-stage "Jacobian" (a diagonal
+    # M is only divided by: no n x n storage, no LU)
     point_hessian(t0, q0, zero, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
     M = Lvv.copy()
-    KM = new_jacobian(1, n)
-    pivM = np.zeros(n, dtype=np.int64)
-    add_block(KM, 0, 1, 1, n, 1.0, M, 0.0, Lqq, 0.0, 0.0, Lqv, Fv)
     mass_diagonal = diagonal_of(M, n)
+    KM = new_jacobian(1, 0 if DIAGONAL_MASS else n)
+    pivM = np.zeros(0 if DIAGONAL_MASS else n, dtype=np.int64)
+    dp = np.zeros(n)  # the step's momentum change
     qk = q0.copy()
     q_lost = np.zeros(n)
     p_lost = np.zeros(n)
@@ -329,7 +331,12 @@ def separable_kernel(
         wrap_angles(qk, q_lost, turns)
     pk = p0.copy()
     saved = save_row(0, t0, qk, q_lost, turns, pk, out)
-    if not factor_jacobian(KM, pivM, 1):
+    if DIAGONAL_MASS:
+        regular = np.all(mass_diagonal != 0.0)
+    else:
+        add_block(KM, 0, 1, 1, n, 1.0, M, 0.0, Lqq, 0.0, 0.0, Lqv, Fv)
+        regular = factor_jacobian(KM, pivM, 1)
+    if not regular:
         return STATUS_SINGULAR, 0, saved, 0.0, np.inf
     for il in range(u):
         for a in range(n):
@@ -436,10 +443,8 @@ def separable_kernel(
             acc = 0.0
             for j in range(r):
                 acc += b[j] * F[j, a]
-            y = h * acc - p_lost[a]
-            total = pk[a] + y
-            p_lost[a] = (total - pk[a]) - y
-            pk[a] = total
+            dp[a] = h * acc
+        compensated_add(pk, p_lost, dp)
         if reuse_endpoint:
             for a in range(n):
                 F[0, a] = F[r - 1, a]
