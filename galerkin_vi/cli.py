@@ -1,7 +1,8 @@
 """The ``galerkin-vi`` command line.
 
 ``galerkin-vi verify`` runs the order study (the project's main job);
-``galerkin-vi bench`` the work-precision benchmark.
+``galerkin-vi bench`` the work-precision benchmark; ``galerkin-vi warmup``
+compiles the time loops once for the machine.
 """
 
 from __future__ import annotations
@@ -147,7 +148,38 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     bench.add_arguments(bench_parser)
+    warmup = sub.add_parser(
+        "warmup",
+        help="compile every time loop once for this machine (otherwise done on first use)",
+        description=(
+            "Compile (or load from the cache) every variant of the time loops, which are shared "
+            "by all systems; afterwards a new Lagrangian only compiles its point functions."
+        ),
+    )
+    warmup.add_argument(
+        "--clear",
+        action="store_true",
+        help="delete the whole cache (loops and every system's point functions) first",
+    )
+    warmup.set_defaults(run=_warmup)
     return parser
+
+
+def _warmup(args: argparse.Namespace) -> int:
+    import shutil
+
+    from .cache import cache_root
+    from .loops import loop_cache_dir
+    from .warmup import warm_up
+
+    if args.clear:
+        shutil.rmtree(cache_root(), ignore_errors=True)
+        print(f"cleared {cache_root()}")
+    print(f"compiling the time loops into {loop_cache_dir()}")
+    start = time.perf_counter()
+    warm_up(verbose=True)
+    print(f"done in {time.perf_counter() - start:.1f} s")
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

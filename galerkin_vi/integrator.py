@@ -15,7 +15,6 @@ from numpy.typing import ArrayLike, NDArray
 from . import codegen
 from .backends import numpy as numpy_backend
 from .backends import numpy_constrained, resolve_backend
-from .backends.numba import load_kernels
 from .constraints import consistent_initial_state, project_momentum
 from .errors import ConvergenceError, DegenerateLagrangianError, InstabilityWarning
 from .method import Galerkin
@@ -183,16 +182,63 @@ class Integrator:
         return codegen.kernel_spec(self.system)
 
     @cached_property
-    def _kernels(self):
-        return load_kernels(self._spec)
+    def _points(self):
+        from .codegen.compiled import load_point_functions
+
+        return load_point_functions(self._spec)
 
     @property
     def source(self) -> str:
-        """Source of the generated kernel module (what the compiled backend runs)."""
+        """Source of the system's generated point functions (what is compiled per system).
+
+        The time loops are not generated: they are the modules of
+        :mod:`galerkin_vi.loops`, the same for every system.
+        """
         if self.backend == "numba":
-            return self._kernels.__loader__.get_source(self._kernels.__name__)
+            return self._points.source
         key = codegen.signature(self._spec, "source", "")
         return codegen.render_module(self._spec, key)
+
+    def _loop_arguments(self):
+        """The system's part of every loop's arguments: (fn, traits, pattern, periodic)."""
+        from .loops.traits import (
+            AUTONOMOUS,
+            BAND,
+            DIAGONAL_MASS,
+            HAS_FV,
+            HAS_LQV,
+            HAS_PERIODIC,
+            N_TRAITS,
+        )
+
+        spec = self._spec
+        names = ("point_gradient",)
+        if self.kernel_path != "explicit":
+            names += ("point_hessian",)
+        if spec.m:
+            names += (
+                "point_constraint",
+                "point_constraint_jacobian",
+                "point_constraint_rate",
+                "point_constraint_hessian",
+            )
+        fn = self._points.addresses(names)
+        traits = np.zeros(N_TRAITS, dtype=np.int64)
+        traits[BAND] = spec.half_bandwidth if spec.banded else -1
+        traits[HAS_LQV] = spec.has_Lqv
+        traits[HAS_FV] = spec.has_fv
+        traits[AUTONOMOUS] = spec.autonomous
+        traits[DIAGONAL_MASS] = spec.diagonal_mass
+        traits[HAS_PERIODIC] = any(spec.periodic)
+        if spec.banded:
+            position = {pair: k for k, pair in enumerate(spec.pattern)}
+            pattern = np.array(
+                [(a, b, position.get((b, a), 0)) for a, b in spec.pattern], dtype=np.int64
+            )
+        else:
+            pattern = np.zeros((0, 3), dtype=np.int64)
+        periodic = np.array(spec.periodic or (False,) * self.system.n, dtype=np.bool_)
+        return fn, traits, pattern, periodic
 
     # ------------------------------------------------------------ validation
     def _state(self, name: str, x: ArrayLike) -> NDArray[np.float64]:
@@ -323,7 +369,7 @@ class Integrator:
         t_out = np.empty(n_saved)
         q_out = np.empty((n_saved, system.n))
         p_out = np.empty((n_saved, system.n))
-        # angles are saved in [-pi, pi) with the whole turns apart (see kernel_template.save_row)
+        # angles are saved in [-pi, pi) with the whole turns apart (see loops.common.save_row)
         periodic = np.array(system.periodic, dtype=bool)
         turns_out = np.zeros((n_saved if periodic.any() else 1, system.n))
         # per saved interval, not per step: a 1e7-step run with save_every stores nothing per step
@@ -333,8 +379,17 @@ class Integrator:
         args = (q0, p0_arr, v0_arr, t0, h, n_steps, int(save_every), prm)
         outputs = (t_out, q_out, p_out, turns_out)
         path = self.kernel_path
-        if path == "constrained" and self.backend == "numba":
-            status, done, saved, worst, increment = self._kernels.constrained_kernel(
+        compiled = self.backend == "numba"
+        if compiled:
+            from . import loops
+            from .warmup import ensure_loops
+
+            ensure_loops()
+            model = self._loop_arguments()
+        if path == "constrained" and compiled:
+            status, done, saved, worst, increment = loops.constrained_loop(
+                *model,
+                system.m,
                 *args,
                 *(tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation),
                 self.tol,
@@ -352,13 +407,19 @@ class Integrator:
             mass = system.evaluate("Lvv", t0, q0, np.zeros(n), prm).reshape(n, n)
             if not is_regular(mass):
                 raise DegenerateLagrangianError(f"the mass matrix d2L/dv2 = {mass} is singular")
-            status, done, saved = self._kernels.verlet_kernel(
-                q0, p0_arr, t0, h, n_steps, int(save_every), prm, np.linalg.inv(mass), *outputs
-            )
+            fn, traits, _, periodic = model
+            inverse = np.linalg.inv(mass)
+            # a writable copy: numba types a read-only view as another (compiled) variant
+            diagonal = np.diag(inverse).copy() if self._spec.diagonal_mass else None
+            status, done, saved = loops.explicit_loop(
+                fn, traits, periodic, q0, p0_arr, t0, h, n_steps, int(save_every), prm,
+                inverse, diagonal, *outputs,
+            )  # fmt: skip
             worst, increment = 0.0, np.nan
         elif path == "separable":
             st = separable_tables(self.method)
-            status, done, saved, worst, increment = self._kernels.separable_kernel(
+            status, done, saved, worst, increment = loops.stage_form_loop(
+                *model,
                 *args,
                 tb.b,
                 tb.c,
@@ -382,14 +443,15 @@ class Integrator:
                 iteration_total,
             )
         elif path == "linear":
-            status, done, saved = self._kernels.linear_kernel(
-                *args, tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation, *outputs
+            status, done, saved = loops.linear_loop(
+                *model, *args, tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation, *outputs
             )
             iterations[: -(-done // save_every)] = 1
             iteration_total[0] = done
             worst, increment = 0.0, np.nan
-        elif self.backend == "numba":
-            status, done, saved, worst, increment = self._kernels.integrate_kernel(
+        elif compiled:
+            status, done, saved, worst, increment = loops.general_loop(
+                *model,
                 *args,
                 tb.b,
                 tb.c,

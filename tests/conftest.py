@@ -11,6 +11,9 @@ from hypothesis import settings
 import galerkin_vi as gvi
 
 os.environ.setdefault("GALERKIN_VI_CACHE_DIR", os.path.join(os.getcwd(), ".gvi-test-cache"))
+# the loops' cache folder is bound on import: here, before any test points
+# GALERKIN_VI_CACHE_DIR at a temporary folder of its own
+import galerkin_vi.loops  # noqa: E402, F401
 
 # The default run is deterministic: the same examples every time, so a CI result does not
 # depend on the draw (an order study of a randomly drawn pendulum can land in the
@@ -40,3 +43,21 @@ def method_registry(max_degree: int = 6) -> list[gvi.Galerkin]:
 @pytest.fixture(scope="session")
 def methods() -> list[gvi.Galerkin]:
     return method_registry()
+
+
+@pytest.fixture
+def warm_cache(tmp_path):
+    """An empty cache folder for one test, with a copy of the compiled loops.
+
+    Subprocesses pointed at it find every loop compiled (as on a machine that has
+    used the library) and build only their systems' point functions there.
+    """
+    import shutil
+
+    from galerkin_vi.loops import loop_cache_dir
+    from galerkin_vi.warmup import warm_up
+
+    warm_up()
+    source = loop_cache_dir()
+    shutil.copytree(source, tmp_path / "loops" / source.name)
+    return tmp_path

@@ -1,4 +1,4 @@
-"""Code generation (spec, signature, rendered source) and the on-disk kernel cache.
+"""Code generation (spec, signature, rendered source) and the on-disk point-function cache.
 
 Every test points ``GALERKIN_VI_CACHE_DIR`` at its own ``tmp_path``. One Lagrangian (a
 Duffing oscillator used nowhere else) is compiled, once, for the corrupt-entry test.
@@ -14,9 +14,9 @@ import pytest
 import sympy as sp
 
 import galerkin_vi as gvi
-from galerkin_vi import codegen
-from galerkin_vi.backends import cache
-from galerkin_vi.backends.numba import numba_version
+from galerkin_vi import cache, codegen
+from galerkin_vi.codegen import compiled
+from galerkin_vi.codegen.compiled import numba_version
 
 x, y, vx, vy, a, b = sp.symbols("x y vx vy a b")
 th1, th2, w1, w2 = sp.symbols("theta1 theta2 omega1 omega2")
@@ -46,11 +46,14 @@ def _key(system, backend="numba"):
 
 # ------------------------------------------------------------------ cache root
 def test_cache_root_follows_the_environment(cache_dir, monkeypatch):
-    assert cache.cache_root() == cache_dir / f"v{codegen.GENERATOR_VERSION}"
-    path = cache.entry_path("ab" * 32)
-    assert path.parent == cache.cache_root()
+    assert cache.cache_root() == cache_dir
+    path = compiled.entry_path("ab" * 32)
+    assert path.parent == cache.cache_root() / "points"
     assert path.name.startswith("gvi_") and path.suffix == ".py"
     monkeypatch.delenv("GALERKIN_VI_CACHE_DIR")
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(cache_dir / "numba"))
+    assert cache.cache_root() == cache_dir / "numba" / "galerkin_vi"
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
     assert cache_dir not in cache.cache_root().parents  # read at call time, not import time
 
 
@@ -130,9 +133,7 @@ def test_render_module_is_valid_python_with_the_key_on_first_and_last_line():
 
 def test_rendered_point_functions_compute_the_derivatives():
     # run the generated module without numba: every entry against the closed form
-    source = codegen.render_module(
-        codegen.kernel_spec(double_pendulum()), "k", decorator="(lambda f: f)"
-    )
+    source = codegen.render_module(codegen.kernel_spec(double_pendulum()), "k")
     ns = _load_uncompiled(source)
     q, v = np.array([0.7, -0.4]), np.array([1.3, 0.2])
     Lq, Lv = np.zeros(2), np.zeros(2)
@@ -164,9 +165,7 @@ def test_rendered_point_functions_compute_the_derivatives():
 
 
 def test_rendered_parameters_are_read_from_prm():
-    ns = _load_uncompiled(
-        codegen.render_module(codegen.kernel_spec(duffing()), "k", decorator="(lambda f: f)")
-    )
+    ns = _load_uncompiled(codegen.render_module(codegen.kernel_spec(duffing()), "k"))
     Lq, Lv = np.zeros(1), np.zeros(1)
     ns["point_gradient"](0.0, np.array([2.0]), np.array([0.5]), np.array([3.0, 0.25]), Lq, Lv)
     assert Lq[0] == -3.0 * 2.0 - 0.25 * 8.0
@@ -178,29 +177,29 @@ def test_read_entry_rejects_missing_truncated_and_foreign_files():
     system = double_pendulum()
     key = _key(system)
     source = codegen.render_module(codegen.kernel_spec(system), key)
-    assert cache.read_entry(key) is None  # missing
-    path = cache.entry_path(key)
+    assert compiled.read_entry(key) is None  # missing
+    path = compiled.entry_path(key)
     path.parent.mkdir(parents=True)
     path.write_text(source[: len(source) // 2])
-    assert cache.read_entry(key) is None  # truncated: no key on the last line
+    assert compiled.read_entry(key) is None  # truncated: no key on the last line
     path.write_text(source.replace(key, "f" * 64))
-    assert cache.read_entry(key) is None  # another key's module under this name
+    assert compiled.read_entry(key) is None  # another key's module under this name
     path.write_bytes(b"\xff\xfe\x00garbage")
-    assert cache.read_entry(key) is None  # not text
+    assert compiled.read_entry(key) is None  # not text
     path.write_text(source)
-    assert cache.read_entry(key) == source
+    assert compiled.read_entry(key) == source
 
 
-def test_write_entry_twice_keeps_the_first_file():
+def test_atomic_write_twice_keeps_the_first_file():
     system = double_pendulum()
     key = _key(system)
     source = codegen.render_module(codegen.kernel_spec(system), key)
-    path = cache.write_entry(key, source)
-    assert path == cache.entry_path(key)
+    path = compiled.entry_path(key)
+    assert cache.atomic_write(path, source)
     before = os.stat(path)
     os.utime(path, ns=(before.st_atime_ns, before.st_mtime_ns - 10**9))  # make a rewrite visible
     before = os.stat(path)
-    assert cache.write_entry(key, source) == path
+    assert not cache.atomic_write(path, source)
     after = os.stat(path)
     assert after.st_mtime_ns == before.st_mtime_ns
     assert after.st_ino == before.st_ino
@@ -208,15 +207,15 @@ def test_write_entry_twice_keeps_the_first_file():
     assert sorted(p.name for p in path.parent.iterdir()) == [path.name]  # no temporaries left
 
 
-def test_write_entry_replaces_a_corrupt_file():
+def test_atomic_write_replaces_a_corrupt_file():
     system = double_pendulum()
     key = _key(system)
     source = codegen.render_module(codegen.kernel_spec(system), key)
-    path = cache.entry_path(key)
+    path = compiled.entry_path(key)
     path.parent.mkdir(parents=True)
     path.write_text(source[:100])
-    cache.write_entry(key, source)
-    assert cache.read_entry(key) == source
+    assert cache.atomic_write(path, source)
+    assert compiled.read_entry(key) == source
     assert sorted(p.name for p in path.parent.iterdir()) == [path.name]
 
 
@@ -224,22 +223,24 @@ def test_corrupt_entry_is_rebuilt_when_the_integrator_loads(monkeypatch):
     system = duffing()
     key = _key(system)
     source = codegen.render_module(codegen.kernel_spec(system), key)
-    path = cache.entry_path(key)
+    path = compiled.entry_path(key)
     path.parent.mkdir(parents=True)
     path.write_text(source[: len(source) // 3])  # an interrupted write
-    assert cache.read_entry(key) is None
+    assert compiled.read_entry(key) is None
     # make sure the module is imported from the cache, not reused from this process
-    module_name = f"galerkin_vi_kernel_{key[:32]}"
+    module_name = f"galerkin_vi_points_{key[:32]}"
     monkeypatch.delitem(sys.modules, module_name, raising=False)
+    monkeypatch.delitem(compiled._LOADED, key, raising=False)
 
     method = gvi.Galerkin(2)
-    compiled = gvi.Integrator(system, method, backend="numba")
+    integrator = gvi.Integrator(system, method, backend="numba")
     try:
-        traj = compiled.integrate([1.0], [0.0], h=0.1, n_steps=50)
-        assert cache.read_entry(key) == source  # rebuilt in place
-        assert compiled.source == source
+        traj = integrator.integrate([1.0], [0.0], h=0.1, n_steps=50)
+        assert compiled.read_entry(key) == source  # rebuilt in place
+        assert integrator.source == source
     finally:
         sys.modules.pop(module_name, None)  # its file lives in tmp_path
+        compiled._LOADED.pop(key, None)
     reference = gvi.Integrator(system, method, backend="numpy").integrate(
         [1.0], [0.0], h=0.1, n_steps=50
     )

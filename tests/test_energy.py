@@ -57,7 +57,7 @@ def _kepler_round_off(n_steps: int, specialize: bool) -> tuple[float, float]:
 
 @pytest.mark.parametrize("specialize", [True, False], ids=["stage-form", "general-newton"])
 def test_kepler_energy_stays_at_round_off(specialize):
-    # momenta added as p_k + h sum b_i F_i with compensated summation (kernel_template.
+    # momenta added as p_k + h sum b_i F_i with compensated summation (loops.general.
     # momentum_increment). Measured over 2e5 steps, relative: stage form 4.9e-15, general
     # loop 2.6e-14; with p_{k+1} = G^s summed directly: 5.9e-13 and 1.7e-12
     first, last = _kepler_round_off(200_000, specialize)

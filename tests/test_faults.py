@@ -493,6 +493,8 @@ def test_step_del_names_a_non_finite_t0(driven):
 def test_truncated_numba_index_and_data_files_are_rebuilt(tmp_path, monkeypatch):
     # numba alone raises UnpicklingError on a truncated index or data file (checked by
     # disabling discard_unreadable_numba_cache); here each is rebuilt on the next load
+    from galerkin_vi.codegen import compiled
+
     monkeypatch.setenv("GALERKIN_VI_CACHE_DIR", str(tmp_path))
     c = sp.Symbol("c")
     # a model of its own, through the explicit (Verlet) kernel: the cheapest to compile
@@ -507,7 +509,8 @@ def test_truncated_numba_index_and_data_files_are_rebuilt(tmp_path, monkeypatch)
         try:
             return integrator.integrate([1.0], [0.2], h=0.05, n_steps=40)
         finally:  # the module's file lives in tmp_path: the next run imports it again
-            sys.modules.pop(integrator._kernels.__name__, None)
+            sys.modules.pop(integrator._points.module.__name__, None)
+            compiled._LOADED.pop(integrator._points.key, None)
 
     reference = run()
     folder = next(tmp_path.rglob("__pycache__"))
@@ -524,12 +527,12 @@ def test_truncated_numba_index_and_data_files_are_rebuilt(tmp_path, monkeypatch)
         np.testing.assert_array_equal(again.p, reference.p)
         (rebuilt,) = folder.glob(f"*{suffix}")
         assert rebuilt.stat().st_size > len(data) // 2
-    assert not numba_backend.discard_unreadable_numba_cache(module)
+    assert not compiled.discard_unreadable_numba_cache(module)
 
 
 def test_module_corrupted_between_intact_key_lines_is_rebuilt(tmp_path, monkeypatch):
     from galerkin_vi import codegen
-    from galerkin_vi.backends import cache
+    from galerkin_vi.codegen import compiled as cache
 
     monkeypatch.setenv("GALERKIN_VI_CACHE_DIR", str(tmp_path))
     c = sp.Symbol("c")
@@ -546,7 +549,8 @@ def test_module_corrupted_between_intact_key_lines_is_rebuilt(tmp_path, monkeypa
     try:
         integrator.integrate([1.0], [0.0], h=0.1, n_steps=3)
     finally:
-        sys.modules.pop(f"galerkin_vi_kernel_{key[:32]}", None)
+        sys.modules.pop(f"galerkin_vi_points_{key[:32]}", None)
+        cache._LOADED.pop(key, None)
 
 
 CONSTRAINED_SCRIPT = textwrap.dedent(
@@ -589,7 +593,8 @@ def _run_processes(cache: Path, count: int) -> list[dict]:
     return results
 
 
-def test_two_processes_build_the_same_constrained_entry_at_once(tmp_path):
+def test_two_processes_build_the_same_constrained_entry_at_once(warm_cache):
+    tmp_path = warm_cache
     first, second = _run_processes(tmp_path, 2)
     assert first == second
     assert first["residual"] <= 1e-13  # measured 2.2e-16

@@ -28,7 +28,7 @@ __all__ = [
 
 
 def _points(tables: MethodTables, t0: float, h: float, qk: NDArray, C: NDArray):
-    # increments C from the base point qk keep V free of eps*|q|/h rounding (see kernel_template)
+    # increments C from the base point qk keep V free of eps*|q|/h rounding (see loops.general)
     t = t0 + tables.c * h
     Q = qk + tables.Phi[:, 1:] @ C[1:]
     V = (tables.D[:, 1:] @ C[1:]) / h
@@ -72,7 +72,7 @@ def momentum_increment(
     r""":math:`h\sum_i b_i (L_q + f)^{(i)}`: :math:`G^s - p_k` once the stage equations hold.
 
     The compiled loops add it to :math:`p_k` with compensated summation (see
-    ``kernel_template.momentum_increment``); so does :func:`integrate`.
+    ``loops.general.momentum_increment``); so does :func:`integrate`.
     """
     t, Q, V = _points(tables, t0, h, qk, C)
     Lq = system.evaluate("gradient", t, Q, V, prm)[:, : system.n]
@@ -172,7 +172,7 @@ def integrate(
     iterations_out: NDArray,
     iteration_total: NDArray,
 ) -> tuple[int, int, int, float, float]:
-    """Same contract as the compiled ``integrate_kernel`` (see kernel_template)."""
+    """Same contract as the compiled ``integrate_kernel`` (see loops.general)."""
     d, E = tables.d, tables.extrapolation
     s = d.size - 1
     C = d[:, None] * h * v0[None, :]

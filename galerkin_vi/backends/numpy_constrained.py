@@ -1,6 +1,6 @@
 r"""Reference backend of the constrained integrator (NumPy, no compiler).
 
-The same equations as :mod:`.constrained_template` (see
+The same equations as :mod:`galerkin_vi.loops.constrained` (see
 :mod:`galerkin_vi.constraints`), written with whole arrays: the oracle the
 compiled constrained loop is tested against.
 """

@@ -1,8 +1,7 @@
 r"""The compiled time loop of the constrained Galerkin integrator.
 
-Appended (below the ``# ---- kernel ----`` marker) to the generated module of
-a system with holonomic constraints, after :mod:`.kernel_template`, whose
-assembly functions it reuses. The method is collocated (control nodes equal
+For a system with holonomic constraints, with the assembly of
+:mod:`.general`. The method is collocated (control nodes equal
 the Lobatto quadrature nodes, :math:`\Phi = I`, ``b[nu]`` the weight of node
 :math:`\nu`). Per step the unknowns are the increments :math:`C^1..C^s` and the
 multipliers as impulses :math:`\Lambda^\nu = h b_\nu\lambda^\nu` (:math:`\nu < s`),
@@ -25,35 +24,32 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..newton import CONTINUE, CONVERGED, lu_factor_inplace, lu_solve_inplace, newton_status
-from .kernel_template import (
+from ._jit import driver, kernel
+from .common import (
     FREEZE,
     STATUS_NEWTON_FAILED,
     STATUS_NONFINITE,
     STATUS_OK,
     STATUS_SINGULAR,
     advance_position,
-    assemble_gradient,
-    assemble_newton,
     extrapolate,
     first_guess,
     interpolate,
-    make_work,
     save_row,
     wrap_angles,
 )
-from .pointwise_interface import (
-    HAS_PERIODIC,
-    M_CONSTRAINTS,
-    kernel,
+from .general import assemble_gradient, assemble_newton, make_work
+from .linalg import CONTINUE, CONVERGED, lu_factor_inplace, lu_solve_inplace, newton_status
+from .point import (
     point_constraint,
     point_constraint_hessian,
     point_constraint_jacobian,
     point_constraint_rate,
     point_hessian,
 )
+from .traits import HAS_PERIODIC
 
-# ---- kernel ----
+__all__ = ["constrained_loop", "project_hidden", "solve_constrained_stages"]
 
 
 @kernel
@@ -75,7 +71,9 @@ def make_constraint_work(s, n, m):
 
 
 @kernel
-def solve_constrained_stages(t0, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, maxiter, work, cw):
+def solve_constrained_stages(
+    fn, t0, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, maxiter, work, cw, traits, pattern
+):
     """Newton on the constrained stage equations; C[1:] and lam (impulses) hold the guess.
 
     Once an increment is below ``FREEZE``, later iterations reuse the LU
@@ -100,9 +98,12 @@ def solve_constrained_stages(t0, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, m
     for it in range(1, maxiter + 1):
         if frozen:
             # at the round-off floor: reuse the last factors, evaluate the residual only
-            assemble_gradient(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
+            assemble_gradient(fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
         else:
-            assemble_newton(t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K)
+            assemble_newton(
+                fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K,
+                traits, pattern,
+            )  # fmt: skip
             A[:, :] = 0.0
             for i in range(sn):
                 for j in range(sn):
@@ -112,7 +113,7 @@ def solve_constrained_stages(t0, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, m
             tn = t0 + d[nu] * h
             for a in range(n):
                 qn[a] = qk[a] + C[nu, a]
-            point_constraint_jacobian(tn, qn, prm, Gq)
+            point_constraint_jacobian(fn, tn, qn, prm, Gq)
             for a in range(n):
                 val = G[nu, a] + (pk[a] if nu == 0 else 0.0)
                 for j in range(m):
@@ -123,7 +124,7 @@ def solve_constrained_stages(t0, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, m
                 if not abs(val) <= residual:
                     residual = abs(val)
             if nu >= 1 and not frozen:
-                point_constraint_hessian(tn, qn, lam[nu], prm, Hg)
+                point_constraint_hessian(fn, tn, qn, lam[nu], prm, Hg)
                 for a in range(n):
                     for cc in range(n):
                         A[nu * n + a, (nu - 1) * n + cc] -= Hg[a * n + cc]
@@ -131,9 +132,9 @@ def solve_constrained_stages(t0, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, m
             tn = t0 + d[nu] * h
             for a in range(n):
                 qn[a] = qk[a] + C[nu, a]
-            point_constraint(tn, qn, prm, g)
+            point_constraint(fn, tn, qn, prm, g)
             if not frozen:
-                point_constraint_jacobian(tn, qn, prm, Gq)
+                point_constraint_jacobian(fn, tn, qn, prm, Gq)
             for j in range(m):
                 row = sn + (nu - 1) * m + j
                 X[row] = -g[j]
@@ -196,7 +197,7 @@ def extrapolate_impulses(lam, mu, b, E, values):
 
 
 @kernel
-def project_hidden(t, q, p_tilde, v, mu, prm, tol, maxiter, work, cw, p_out):
+def project_hidden(fn, t, q, p_tilde, v, mu, prm, tol, maxiter, work, cw, p_out):
     r"""Momentum on the hidden constraint: solve :math:`L_v(t, q, v) + \mathcal G^T\mu = \tilde p`,
     :math:`\mathcal G v + g_t = 0` by Newton from ``v``; write :math:`\tilde p - \mathcal G^T\mu`
     into ``p_out``. Returns True on convergence (``v`` then holds the velocity,
@@ -206,12 +207,12 @@ def project_hidden(t, q, p_tilde, v, mu, prm, tol, maxiter, work, cw, p_out):
     A, X, pivot, g, Gq, gt, Hg, B, Y, pivot_b, qn = cw
     n = q.shape[0]
     m = g.shape[0]
-    point_constraint_jacobian(t, q, prm, Gq)
-    point_constraint_rate(t, q, prm, gt)
+    point_constraint_jacobian(fn, t, q, prm, Gq)
+    point_constraint_rate(fn, t, q, prm, gt)
     mu[:] = 0.0
     previous = np.inf
     for it in range(1, maxiter + 1):
-        point_hessian(t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
+        point_hessian(fn, t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
         B[:, :] = 0.0
         for a in range(n):
             acc = Lv[a] - p_tilde[a]
@@ -254,8 +255,13 @@ def project_hidden(t, q, p_tilde, v, mu, prm, tol, maxiter, work, cw, p_out):
     return True
 
 
-@kernel
-def constrained_kernel(
+@driver
+def constrained_loop(
+    fn,
+    traits,
+    pattern,
+    periodic,
+    m,
     q0,
     p0,
     v0,
@@ -281,14 +287,13 @@ def constrained_kernel(
 ):
     """Run ``n_steps`` constrained steps from a consistent (q0, p0).
 
-    Same contract as ``integrate_kernel``.
+    Same contract as :func:`.general_loop`; ``m`` is the number of constraints.
     """
     n = q0.shape[0]
-    out = (t_out, q_out, p_out, turns_out)
+    has_periodic = traits[HAS_PERIODIC] != 0
     s1 = d.shape[0]
     s = s1 - 1
-    m = M_CONSTRAINTS
-    work = make_work(s, n)
+    work = make_work(s, n, traits, pattern)
     cw = make_constraint_work(s, n, m)
     Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = work
     lam = np.zeros((s, m))
@@ -299,14 +304,14 @@ def constrained_kernel(
     qk = q0.copy()
     q_lost = np.zeros(n)
     turns = np.zeros(n)
-    if HAS_PERIODIC:
-        wrap_angles(qk, q_lost, turns)
+    if has_periodic:
+        wrap_angles(qk, q_lost, turns, periodic)
     pk = p0.copy()
     p_tilde = np.zeros(n)
     p_next = np.zeros(n)
     vk = v0.copy()
     first_guess(C, d, h, v0)
-    saved = save_row(0, t0, qk, q_lost, turns, pk, out)
+    saved = save_row(0, t0, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic)
     worst = 0.0
     r = b.shape[0]
     for k in range(n_steps):
@@ -315,14 +320,14 @@ def constrained_kernel(
             extrapolate(C, C_prev, E)
             extrapolate_impulses(lam, mu, b, E, multipliers)
         status, its, increment, residual = solve_constrained_stages(
-            tk, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, maxiter, work, cw
+            fn, tk, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, maxiter, work, cw, traits, pattern
         )
         slot = k // save_every
         if its > iterations_out[slot]:
             iterations_out[slot] = its
         iteration_total[0] += its
         if status == STATUS_OK:
-            assemble_gradient(tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
+            assemble_gradient(fn, tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
             for a in range(n):
                 p_tilde[a] = G[s, a]
             # velocity guess: the polynomial's derivative at the step's end
@@ -330,20 +335,27 @@ def constrained_kernel(
             for a in range(n):
                 vk[a] = V[a]
                 Q[a] = qk[a] + C[s, a]
-            if not project_hidden(tk + h, Q, p_tilde, vk, mu, prm, tol, maxiter, work, cw, p_next):
+            if not project_hidden(
+                fn, tk + h, Q, p_tilde, vk, mu, prm, tol, maxiter, work, cw, p_next
+            ):
                 status = STATUS_NEWTON_FAILED
             for a in range(n):
                 if not abs(p_next[a]) < 1e300:
                     status = STATUS_NONFINITE
         if status != STATUS_OK:
             if k % save_every != 0:
-                saved = save_row(saved, tk, qk, q_lost, turns, pk, out)
+                saved = save_row(
+                    saved, tk, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic
+                )
             return status, k, saved, worst, increment
         if residual > worst:
             worst = residual
         for a in range(n):
             pk[a] = p_next[a]
-        advance_position(qk, q_lost, C, turns)
+        advance_position(qk, q_lost, C, turns, periodic, has_periodic)
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
-            saved = save_row(saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, out)
+            saved = save_row(
+                saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out,
+                periodic,
+            )  # fmt: skip
     return STATUS_OK, n_steps, saved, worst, 0.0

@@ -1,9 +1,7 @@
 r"""The compiled time loop of the stage form, for separable Lagrangians.
 
-Appended (below the ``# ---- kernel ----`` marker) to the generated module of
-a system with :math:`L = \tfrac12 v^TMv + a(t)\cdot v + U(t, q)`, constant
-:math:`M` and forces independent of :math:`v`, after :mod:`.kernel_template`,
-whose storage helpers it reuses. The tables are those of
+For a system with :math:`L = \tfrac12 v^TMv + a(t)\cdot v + U(t, q)`, constant
+:math:`M` and forces independent of :math:`v`. The tables are those of
 :mod:`galerkin_vi.separable`: with :math:`F_j = (L_q + f)(t_k + c_j h, q_k + Z_j)`,
 the unknowns are the increments :math:`Z_i` at the implicit points,
 
@@ -23,37 +21,34 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..newton import CONTINUE, CONVERGED, newton_status
-from .kernel_template import (
+from ._jit import driver, kernel
+from .common import (
     FREEZE,
     STATUS_NEWTON_FAILED,
     STATUS_NONFINITE,
     STATUS_OK,
     STATUS_SINGULAR,
-    add_block,
     advance_position,
     compensated_add,
-    factor_jacobian,
-    new_jacobian,
     save_row,
-    solve_jacobian,
-    unknown,
     wrap_angles,
 )
-from .pointwise_interface import (
-    AUTONOMOUS,
-    BANDED,
-    DIAGONAL_MASS,
-    HAS_PERIODIC,
-    NNZ,
-    PATTERN_COL,
-    PATTERN_ROW,
-    kernel,
-    point_gradient,
-    point_hessian,
+from .linalg import (
+    CONTINUE,
+    CONVERGED,
+    add_block,
+    block_size,
+    factor_jacobian,
+    new_jacobian,
+    newton_status,
+    solve_jacobian,
+    unknown,
 )
+from .point import point_gradient, point_hessian
+from .traits import AUTONOMOUS, BAND, DIAGONAL_MASS, HAS_PERIODIC
 
-# ---- kernel ----
+__all__ = ["finish_step", "stage_form_loop", "stage_solve"]
+
 # constant-mass iteration: switch to full Newton when an increment is more than
 # MASS_CONTRACTION * (number of unknowns) times the one before, capped at
 # MASS_CONTRACTION_MAX: a full Newton step costs relatively more with more unknowns
@@ -65,23 +60,22 @@ MASS_RETRY = 64
 
 
 @kernel
-def mass_times(M, mass_diagonal, x, out):
+def mass_times(M, mass_diagonal, x, out, traits, pattern):
     """out = M x for the constant mass matrix stored flat (dense or pattern order).
 
-    With ``DIAGONAL_MASS`` (point masses, the common case) only
-    ``mass_diagonal`` is used: a compile-time branch, so that the dense loop
-    is not even compiled in (a run-time test cost the pendulum 30 % per step).
+    With a diagonal M (point masses, the common case) only ``mass_diagonal``
+    is used.
     """
     n = x.shape[0]
-    if DIAGONAL_MASS:
+    if traits[DIAGONAL_MASS] != 0:
         for a in range(n):
             out[a] = mass_diagonal[a] * x[a]
         return
-    if BANDED:
+    if traits[BAND] >= 0:
         for a in range(n):
             out[a] = 0.0
-        for k in range(NNZ):
-            out[PATTERN_ROW[k]] += M[k] * x[PATTERN_COL[k]]
+        for k in range(pattern.shape[0]):
+            out[pattern[k, 0]] += M[k] * x[pattern[k, 1]]
         return
     for a in range(n):
         acc = 0.0
@@ -91,23 +85,23 @@ def mass_times(M, mass_diagonal, x, out):
 
 
 @kernel
-def solve_mass(KM, pivM, mass_diagonal, x):
-    """x <- M^{-1} x with the factors of :func:`separable_kernel`'s mass matrix."""
-    if DIAGONAL_MASS:
+def solve_mass(KM, pivM, mass_diagonal, x, traits):
+    """x <- M^{-1} x with the factors of :func:`stage_form_loop`'s mass matrix."""
+    if traits[DIAGONAL_MASS] != 0:
         for a in range(x.shape[0]):
             x[a] /= mass_diagonal[a]
         return
-    solve_jacobian(KM, pivM, 1, x)
+    solve_jacobian(KM, pivM, 1, x, traits)
 
 
 @kernel
-def diagonal_of(M, n):
+def diagonal_of(M, n, traits, pattern):
     """The diagonal of the flat-stored M (dense ``a n + a``, or the pattern's diagonal)."""
     diagonal = np.zeros(n)
-    if BANDED:
-        for k in range(NNZ):
-            if PATTERN_ROW[k] == PATTERN_COL[k]:
-                diagonal[PATTERN_ROW[k]] = M[k]
+    if traits[BAND] >= 0:
+        for k in range(pattern.shape[0]):
+            if pattern[k, 0] == pattern[k, 1]:
+                diagonal[pattern[k, 0]] = M[k]
         return diagonal
     for a in range(n):
         diagonal[a] = M[a * n + a]
@@ -116,6 +110,9 @@ def diagonal_of(M, n):
 
 @kernel
 def stage_solve(
+    fn,
+    traits,
+    pattern,
     t0,
     h,
     qk,
@@ -149,6 +146,8 @@ def stage_solve(
     """
     Q, zero, Lq, Lv, Lqq, Lqv, Lvv, Fv, F, K, R, piv, x, mz = work
     u, n = Z.shape
+    autonomous = traits[AUTONOMOUS] != 0
+    banded = traits[BAND] >= 0
     previous = np.inf
     residual = np.inf
     frozen = False
@@ -166,9 +165,9 @@ def stage_solve(
             j = implicit[jl]
             for a in range(n):
                 Q[a] = qk[a] + Z[jl, a]
-            tj = 0.0 if AUTONOMOUS else t0 + c[j] * h
+            tj = 0.0 if autonomous else t0 + c[j] * h
             if full:
-                point_hessian(tj, Q, zero, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
+                point_hessian(fn, tj, Q, zero, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
                 for il in range(u):
                     add_block(
                         K,
@@ -184,22 +183,24 @@ def stage_solve(
                         0.0,
                         Lqv,
                         Fv,
+                        traits,
+                        pattern,
                     )
             else:
-                point_gradient(tj, Q, zero, prm, Lq, Lv)
+                point_gradient(fn, tj, Q, zero, prm, Lq, Lv)
             for a in range(n):
                 F[j, a] = Lq[a]
         residual = 0.0
         for il in range(u):
             for a in range(n):
                 x[a] = Z[il, a]
-            mass_times(M, mass_diagonal, x, mz)
+            mass_times(M, mass_diagonal, x, mz, traits, pattern)
             for a in range(n):
                 acc = offset[il, a]
                 for jl in range(u):
                     acc += h2 * force_table[il, implicit[jl]] * F[implicit[jl], a]
                 val = mz[a] - acc
-                R[unknown(il, a, u, n)] = -val
+                R[unknown(il, a, u, n, banded)] = -val
                 if not abs(val) <= residual:  # also catches NaN
                     residual = abs(val)
         if not residual < 1e300:
@@ -207,19 +208,19 @@ def stage_solve(
         if cheap:
             for il in range(u):
                 for a in range(n):
-                    x[a] = R[unknown(il, a, u, n)]
-                solve_mass(KM, pivM, mass_diagonal, x)
+                    x[a] = R[unknown(il, a, u, n, banded)]
+                solve_mass(KM, pivM, mass_diagonal, x, traits)
                 for a in range(n):
-                    R[unknown(il, a, u, n)] = x[a]
+                    R[unknown(il, a, u, n, banded)] = x[a]
         else:
-            if full and not factor_jacobian(K, piv, u):
+            if full and not factor_jacobian(K, piv, u, traits):
                 return STATUS_SINGULAR, it, np.inf, residual, switched
-            solve_jacobian(K, piv, u, R)
+            solve_jacobian(K, piv, u, R, traits)
         increment = 0.0
         size = 0.0
         for il in range(u):
             for a in range(n):
-                delta = R[unknown(il, a, u, n)]
+                delta = R[unknown(il, a, u, n, banded)]
                 Z[il, a] += delta
                 if abs(delta) > increment:
                     increment = abs(delta)
@@ -249,8 +250,12 @@ def stage_solve(
     return STATUS_NEWTON_FAILED, maxiter, previous, residual, switched
 
 
-@kernel
-def separable_kernel(
+@driver
+def stage_form_loop(
+    fn,
+    traits,
+    pattern,
+    periodic,
     q0,
     p0,
     v0,
@@ -283,7 +288,7 @@ def separable_kernel(
     iterations_out,
     iteration_total,
 ):
-    """Run ``n_steps`` steps of the stage form from (q0, p0); as :func:`integrate_kernel`.
+    """Run ``n_steps`` steps of the stage form from (q0, p0); as :func:`.general_loop`.
 
     ``cheap_first``: start each step with the constant-mass iteration (see
     :func:`stage_solve`). Returns (status, steps completed, rows saved, max
@@ -293,18 +298,21 @@ def separable_kernel(
     r = b.shape[0]
     s = control_p.shape[0]
     u = implicit.shape[0]
-    out = (t_out, q_out, p_out, turns_out)
+    autonomous = traits[AUTONOMOUS] != 0
+    diagonal = traits[DIAGONAL_MASS] != 0
+    has_periodic = traits[HAS_PERIODIC] != 0
+    nnz = block_size(n, traits, pattern)
     Q = np.zeros(n)
     zero = np.zeros(n)
     Lq = np.zeros(n)
     Lv = np.zeros(n)
-    Lqq = np.zeros(NNZ)
-    Lqv = np.zeros(NNZ)
-    Lvv = np.zeros(NNZ)
+    Lqq = np.zeros(nnz)
+    Lqv = np.zeros(nnz)
+    Lvv = np.zeros(nnz)
     Fv = np.zeros(1)
     F = np.zeros((r, n))  # L_q + f at the quadrature points
     A = np.zeros((r, n))  # a(t) = L_v(t, q, 0) at the quadrature points
-    K = new_jacobian(u, n)
+    K = new_jacobian(u, n, traits)
     R = np.zeros(u * n)
     piv = np.zeros(u * n, dtype=np.int64)
     x = np.zeros(n)
@@ -317,25 +325,25 @@ def separable_kernel(
     control_gauge = np.zeros((s, n))
     # the constant mass matrix, factorised once as a one-stage "Jacobian" (a diagonal
     # M is only divided by: no n x n storage, no LU)
-    point_hessian(t0, q0, zero, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
+    point_hessian(fn, t0, q0, zero, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
     M = Lvv.copy()
-    mass_diagonal = diagonal_of(M, n)
-    KM = new_jacobian(1, 0 if DIAGONAL_MASS else n)
-    pivM = np.zeros(0 if DIAGONAL_MASS else n, dtype=np.int64)
+    mass_diagonal = diagonal_of(M, n, traits, pattern)
+    KM = new_jacobian(1, 0 if diagonal else n, traits)
+    pivM = np.zeros(0 if diagonal else n, dtype=np.int64)
     dp = np.zeros(n)  # the step's momentum change
     qk = q0.copy()
     q_lost = np.zeros(n)
     p_lost = np.zeros(n)
     turns = np.zeros(n)
-    if HAS_PERIODIC:
-        wrap_angles(qk, q_lost, turns)
+    if has_periodic:
+        wrap_angles(qk, q_lost, turns, periodic)
     pk = p0.copy()
-    saved = save_row(0, t0, qk, q_lost, turns, pk, out)
-    if DIAGONAL_MASS:
+    saved = save_row(0, t0, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic)
+    if diagonal:
         regular = np.all(mass_diagonal != 0.0)
     else:
-        add_block(KM, 0, 1, 1, n, 1.0, M, 0.0, Lqq, 0.0, 0.0, Lqv, Fv)
-        regular = factor_jacobian(KM, pivM, 1)
+        add_block(KM, 0, 1, 1, n, 1.0, M, 0.0, Lqq, 0.0, 0.0, Lqv, Fv, traits, pattern)
+        regular = factor_jacobian(KM, pivM, 1, traits)
     if not regular:
         return STATUS_SINGULAR, 0, saved, 0.0, np.inf
     for il in range(u):
@@ -347,18 +355,18 @@ def separable_kernel(
     have_start_force = False
     for k in range(n_steps):
         tk = t0 + k * h
-        if k == 0 or not AUTONOMOUS:
+        if k == 0 or not autonomous:
             for j in range(r):
-                point_gradient(0.0 if AUTONOMOUS else tk + c[j] * h, qk, zero, prm, Lq, Lv)
+                point_gradient(fn, 0.0 if autonomous else tk + c[j] * h, qk, zero, prm, Lq, Lv)
                 for a in range(n):
                     A[j, a] = Lv[a]
-        if not (AUTONOMOUS and reuse_endpoint and have_start_force):
+        if not (autonomous and reuse_endpoint and have_start_force):
             for jk in range(known.shape[0]):
                 j = known[jk]
-                point_gradient(0.0 if AUTONOMOUS else tk + c[j] * h, qk, zero, prm, Lq, Lv)
+                point_gradient(fn, 0.0 if autonomous else tk + c[j] * h, qk, zero, prm, Lq, Lv)
                 for a in range(n):
                     F[j, a] = Lq[a]
-        if k == 0 or not AUTONOMOUS:
+        if k == 0 or not autonomous:
             # h sum_j Y_ij a_j (stages) and h sum_j Y_mu,j a_j (control points): with t
             # absent, a is constant and so are these
             for il in range(u):
@@ -383,6 +391,9 @@ def separable_kernel(
         status, its, increment, residual, switched = STATUS_OK, 0, 0.0, 0.0, False
         if u > 0:
             status, its, increment, residual, switched = stage_solve(
+                fn,
+                traits,
+                pattern,
                 tk,
                 h,
                 qk,
@@ -411,6 +422,8 @@ def separable_kernel(
         iteration_total[0] += its
         if status == STATUS_OK:
             status = finish_step(
+                fn,
+                traits,
                 tk,
                 h,
                 qk,
@@ -434,7 +447,9 @@ def separable_kernel(
             )
         if status != STATUS_OK:
             if k % save_every != 0:  # keep the last good state, even if not due for saving
-                saved = save_row(saved, tk, qk, q_lost, turns, pk, out)
+                saved = save_row(
+                    saved, tk, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic
+                )
             return status, k, saved, worst, increment
         if residual > worst:
             worst = residual
@@ -449,7 +464,8 @@ def separable_kernel(
             for a in range(n):
                 F[0, a] = F[r - 1, a]
             have_start_force = True
-        advance_position(qk, q_lost, C, turns)  # adds C[s - 1], the last row: C^s
+        # adds C[s - 1], the last row: C^s
+        advance_position(qk, q_lost, C, turns, periodic, has_periodic)
         # next guess: this step's polynomial at the next step's implicit points
         for il in range(u):
             for a in range(n):
@@ -458,12 +474,17 @@ def separable_kernel(
                     acc += E[il, mu] * C[mu, a]
                 Z[il, a] = acc - C[s - 1, a]
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
-            saved = save_row(saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, out)
+            saved = save_row(
+                saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out,
+                periodic,
+            )  # fmt: skip
     return STATUS_OK, n_steps, saved, worst, 0.0
 
 
 @kernel
 def finish_step(
+    fn,
+    traits,
     tk,
     h,
     qk,
@@ -497,12 +518,13 @@ def finish_step(
     u, n = Z.shape
     s = C.shape[0]
     r = b.shape[0]
+    autonomous = traits[AUTONOMOUS] != 0
     h2 = h * h
     for jl in range(u):
         j = implicit[jl]
         for a in range(n):
             Q[a] = qk[a] + Z[jl, a]
-        point_gradient(0.0 if AUTONOMOUS else tk + c[j] * h, Q, zero, prm, Lq, Lv)
+        point_gradient(fn, 0.0 if autonomous else tk + c[j] * h, Q, zero, prm, Lq, Lv)
         for a in range(n):
             F[j, a] = Lq[a]
     for mu in range(s):
@@ -512,7 +534,7 @@ def finish_step(
                 acc += control_force[mu, j] * F[j, a]
             acc = h * control_p[mu] * pk[a] + control_gauge[mu, a] + h2 * acc
             x[a] = acc
-        solve_mass(KM, pivM, mass_diagonal, x)
+        solve_mass(KM, pivM, mass_diagonal, x, traits)
         for a in range(n):
             C[mu, a] = x[a]
     for jr in range(rest.shape[0]):
@@ -522,7 +544,7 @@ def finish_step(
             for mu in range(s):
                 acc += Phi1[j, mu] * C[mu, a]
             Q[a] = qk[a] + acc
-        point_gradient(0.0 if AUTONOMOUS else tk + c[j] * h, Q, zero, prm, Lq, Lv)
+        point_gradient(fn, 0.0 if autonomous else tk + c[j] * h, Q, zero, prm, Lq, Lv)
         for a in range(n):
             F[j, a] = Lq[a]
     for a in range(n):

@@ -1,0 +1,177 @@
+"""Stage 3 of code generation: a system's point functions compiled, cached, by address.
+
+The source of :func:`~.source.render_module` is written once to the cache
+(``points/gvi_<key>.py`` under :func:`galerkin_vi.cache.cache_root`) and
+imported from there; each point function a loop needs is compiled on first
+use as a numba ``cfunc`` with numba's own disk cache beside the file, so that
+a later process loads it in milliseconds. The loops receive the functions'
+addresses (:mod:`galerkin_vi.loops.point` gives the C signatures).
+
+A file whose first and last lines do not carry its key, or that no longer
+imports, is written afresh; numba cache files that cannot be read back are
+deleted and rebuilt. Two processes that build the same entry at once both
+succeed: the source is installed atomically (first complete file wins), and
+numba writes its own files through temporary files.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..cache import atomic_write, cache_root, discard_unreadable
+from .source import render_module
+from .spec import KernelSpec, signature
+
+__all__ = [
+    "PointFunctions",
+    "discard_unreadable_numba_cache",
+    "entry_path",
+    "load_point_functions",
+    "numba_version",
+    "read_entry",
+]
+
+_SLOTS = {
+    "point_gradient": 0,
+    "point_hessian": 1,
+    "lagrangian": 2,
+    "point_constraint": 3,
+    "point_constraint_jacobian": 4,
+    "point_constraint_rate": 5,
+    "point_constraint_hessian": 6,
+}
+_LOCK = threading.Lock()
+# compiled point functions stay alive while the process runs: loops hold their addresses
+_LOADED: dict[str, PointFunctions] = {}
+
+
+def numba_version() -> str | None:
+    """The installed numba version, or None when numba cannot be imported."""
+    try:
+        import numba
+    except Exception:  # noqa: BLE001 - any import failure means "not available"
+        return None
+    return numba.__version__
+
+
+def _c_signatures() -> dict:
+    from numba import types
+
+    double = types.float64
+    ptr = types.CPointer(double)
+    return {
+        "point_gradient": types.void(double, *(ptr,) * 5),
+        "point_hessian": types.void(double, *(ptr,) * 9),
+        "lagrangian": double(double, *(ptr,) * 3),
+        "point_constraint": types.void(double, *(ptr,) * 3),
+        "point_constraint_jacobian": types.void(double, *(ptr,) * 3),
+        "point_constraint_rate": types.void(double, *(ptr,) * 3),
+        "point_constraint_hessian": types.void(double, *(ptr,) * 4),
+    }
+
+
+def entry_path(key: str) -> Path:
+    """Path of the source file of cache entry ``key``."""
+    return cache_root() / "points" / f"gvi_{key[:32]}.py"
+
+
+def read_entry(key: str) -> str | None:
+    """The cached source for ``key``, or None if absent or corrupt."""
+    try:
+        text = entry_path(key).read_text()
+    except (FileNotFoundError, UnicodeDecodeError):
+        return None
+    lines = text.rstrip("\n").splitlines()
+    if not lines or key not in lines[0] or key not in lines[-1]:
+        return None
+    return text
+
+
+@dataclass
+class PointFunctions:
+    """One system's point functions: their module and the ones compiled so far."""
+
+    key: str
+    module: ModuleType
+    compiled: dict = field(default_factory=dict)
+
+    @property
+    def source(self) -> str:
+        """The generated source text."""
+        return entry_path(self.key).read_text()
+
+    def addresses(self, names: tuple[str, ...]) -> NDArray[np.int64]:
+        """Addresses of the slots of :mod:`galerkin_vi.loops.point`, compiling ``names``.
+
+        Slots of functions not asked for (nor compiled before) hold 0.
+        """
+        from numba import cfunc
+
+        signatures = _c_signatures()
+        with _LOCK:
+            for name in names:
+                if name not in self.compiled:
+                    function = getattr(self.module, name)
+                    self.compiled[name] = cfunc(signatures[name], cache=True, error_model="numpy")(
+                        function
+                    )
+        out = np.zeros(len(_SLOTS), dtype=np.int64)
+        for name, compiled in self.compiled.items():
+            out[_SLOTS[name]] = compiled.address
+        return out
+
+
+def load_point_functions(spec: KernelSpec) -> PointFunctions:
+    """Generate (or find in the cache) and import the point functions of ``spec``."""
+    key = signature(spec, "numba", numba_version() or "none")
+    with _LOCK:
+        loaded = _LOADED.get(key)
+        if loaded is None:
+            loaded = _LOADED[key] = PointFunctions(key, _load_module(spec, key))
+    return loaded
+
+
+def _load_module(spec: KernelSpec, key: str) -> ModuleType:
+    module_name = f"galerkin_vi_points_{key[:32]}"
+    cached = read_entry(key) is not None
+    if not cached:
+        atomic_write(entry_path(key), render_module(spec, key))
+    try:
+        return _import_entry(key, module_name)
+    except (SyntaxError, ValueError):
+        if not cached:
+            raise
+    # an entry with intact key lines but damaged in between (bit rot, a foreign
+    # edit): rendered afresh and imported once more
+    entry_path(key).unlink(missing_ok=True)
+    atomic_write(entry_path(key), render_module(spec, key))
+    return _import_entry(key, module_name)
+
+
+def discard_unreadable_numba_cache(module_path: Path) -> list[Path]:
+    """Delete the numba cache files of ``module_path`` that cannot be read back."""
+    return discard_unreadable(module_path.parent / "__pycache__", module_path.stem)
+
+
+def _import_entry(key: str, module_name: str) -> ModuleType:
+    """Import the cache entry ``key`` as ``module_name``."""
+    path = entry_path(key)
+    discard_unreadable_numba_cache(path)
+    loader_spec = importlib.util.spec_from_file_location(module_name, path)
+    assert loader_spec is not None and loader_spec.loader is not None
+    module = importlib.util.module_from_spec(loader_spec)
+    sys.modules[module_name] = module
+    try:
+        loader_spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[module_name]
+        raise
+    return module

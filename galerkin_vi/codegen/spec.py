@@ -1,0 +1,226 @@
+r"""Stage 1 of code generation: a system's point-wise expressions as plain data.
+
+:func:`kernel_spec` collects the expressions of :math:`L`, :math:`L_q + f`,
+:math:`L_v`, :math:`L_{qq} + f_q`, :math:`L_{qv}`, :math:`L_{vv}`, :math:`f_v`
+and of the constraints, drops the entries that are identically zero and
+renames the user's symbols to array slots ``q[a]``, ``v[a]``, ``prm[j]``;
+:func:`signature` hashes the result with the generator's version, naming the
+system's cache entry. Nothing here depends on how the loops are compiled:
+they are the same for every system (:mod:`galerkin_vi.loops`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import sys
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import sympy as sp
+
+from ..separable import has_stage_form
+
+if TYPE_CHECKING:
+    from ..system import LagrangianSystem
+
+__all__ = [
+    "GENERATOR_VERSION",
+    "KernelSpec",
+    "kernel_spec",
+    "signature",
+    "sparsity_pattern",
+    "use_banded",
+]
+
+GENERATOR_VERSION = "5"
+
+
+@dataclass(frozen=True)
+class KernelSpec:
+    """Language-neutral description of one system's point functions.
+
+    Each ``*_entries`` is a tuple of ``(target, expression)`` with target an
+    array slot such as ``"Lqq[0, 1]"``; identically zero entries are absent.
+    """
+
+    n: int
+    n_params: int
+    autonomous: bool
+    has_Lqv: bool
+    lagrangian: sp.Expr
+    gradient_entries: tuple[tuple[str, sp.Expr], ...]
+    hessian_entries: tuple[tuple[str, sp.Expr], ...]
+    pattern: tuple[tuple[int, int], ...] = ()
+    half_bandwidth: int = 0
+    banded: bool = False
+    has_fv: bool = False
+    m: int = 0
+    periodic: tuple[bool, ...] = ()
+    separable: bool = False
+    diagonal_mass: bool = False
+    constraint_entries: tuple[tuple[str, sp.Expr], ...] = ()
+    constraint_jacobian_entries: tuple[tuple[str, sp.Expr], ...] = ()
+    constraint_rate_entries: tuple[tuple[str, sp.Expr], ...] = ()
+    constraint_hessian_entries: tuple[tuple[str, sp.Expr], ...] = ()
+
+    @property
+    def constraint_parts(self) -> tuple[tuple[str, sp.Expr], ...]:
+        """Every constraint entry, in a fixed order (for hashing)."""
+        return (
+            self.constraint_entries
+            + self.constraint_jacobian_entries
+            + self.constraint_rate_entries
+            + self.constraint_hessian_entries
+        )
+
+    @property
+    def nnz(self) -> int:
+        """Number of stored entries of each second-derivative block."""
+        return len(self.pattern) if self.banded else self.n * self.n
+
+
+def sparsity_pattern(pieces, n: int, has_lqv: bool) -> tuple[tuple[int, int], ...]:
+    """Union of the structural nonzeros of L_qq + f_q, L_vv, L_qv, f_v and transposes, row-major."""
+    blocks = [pieces.force_q, pieces.Lvv] + ([pieces.Lqv] if has_lqv else [])
+    if pieces.fv is not None:
+        blocks.append(pieces.fv)
+    pairs = set()
+    for block in blocks:
+        for (a, b), e in block.todok().items():
+            if e != 0:
+                pairs.add((a, b))
+                pairs.add((b, a))
+    pairs.update((a, a) for a in range(n))  # the diagonal, so every coordinate has a row
+    return tuple(sorted(pairs))
+
+
+def use_banded(n: int, half_bandwidth: int) -> bool:
+    """Banded storage and LU pay when the coupling band is narrow against n.
+
+    With s control points the stage Jacobian, ordered coordinate-major, has
+    half-bandwidth (w + 1) s - 1 for coordinate coupling |a - b| <= w: a banded LU
+    costs O(n s^3 w^2) instead of O(n^3 s^3).
+    """
+    return n >= 8 and 4 * (half_bandwidth + 1) <= n
+
+
+def kernel_spec(system: LagrangianSystem) -> KernelSpec:
+    """Collect the expressions of ``system`` with symbols renamed to array slots."""
+    n = system.n
+    rename: dict[sp.Symbol, sp.Symbol] = {}
+    for a, s in enumerate(system.q):
+        rename[s] = sp.Symbol(f"q[{a}]", real=True)
+    for a, s in enumerate(system.v):
+        rename[s] = sp.Symbol(f"v[{a}]", real=True)
+    for j, s in enumerate(system.params):
+        rename[s] = sp.Symbol(f"prm[{j}]", real=True)
+    if system.t is not None:
+        rename[system.t] = sp.Symbol("t", real=True)
+    p = system.pieces
+    has_lqv = not system.structure.zero_Lqv
+    pattern = sparsity_pattern(p, n, has_lqv)
+    half_bandwidth = max(abs(a - b) for a, b in pattern) if pattern else 0
+    m = system.m
+    # the constrained loop is dense: multipliers couple every coordinate they touch
+    banded = use_banded(n, half_bandwidth) and m == 0
+    position = {pair: k for k, pair in enumerate(pattern)}
+
+    def vector(name: str, column: sp.Matrix) -> list[tuple[str, sp.Expr]]:
+        return [(f"{name}[{a}]", e.xreplace(rename)) for a, e in enumerate(column) if e != 0]
+
+    def matrix(name: str, block: sp.MatrixBase) -> list[tuple[str, sp.Expr]]:
+        # flat storage: slot a*n + b (dense), or the pattern position of (a, b) (banded)
+        out = []
+        for (a, b), e in sorted(block.todok().items()):
+            if e != 0:
+                k = position[(a, b)] if banded else a * n + b
+                out.append((f"{name}[{k}]", e.xreplace(rename)))
+        return out
+
+    has_fv = not system.structure.zero_fv
+    # forces enter where L_q does: the kernels see L_q + f and L_qq + f_q
+    gradient = vector("Lq", p.force) + vector("Lv", p.Lv)
+    hessian = (
+        gradient
+        + matrix("Lqq", p.force_q)
+        + (matrix("Lqv", p.Lqv) if has_lqv else [])
+        + matrix("Lvv", p.Lvv)
+        + (matrix("Fv", p.fv) if has_fv else [])
+    )
+    return KernelSpec(
+        n=n,
+        n_params=len(system.params),
+        autonomous=system.structure.autonomous,
+        has_Lqv=has_lqv,
+        lagrangian=p.L.xreplace(rename),
+        gradient_entries=tuple(gradient),
+        hessian_entries=tuple(hessian),
+        pattern=pattern if banded else (),
+        half_bandwidth=half_bandwidth,
+        banded=banded,
+        has_fv=has_fv,
+        periodic=system.periodic,
+        separable=has_stage_form(system),
+        diagonal_mass=system.structure.constant_mass
+        and all(a == b for (a, b), e in p.Lvv.todok().items() if e != 0),
+        **_constraint_entries(system, rename),
+    )
+
+
+def _constraint_entries(system: LagrangianSystem, rename: dict) -> dict:
+    r"""Entries of the constraint point functions (empty without constraints).
+
+    ``g[j]``, ``Gq[j n + a]`` (dense Jacobian), ``gt[j]`` and
+    ``Hg[a n + b]`` :math:`= \sum_j \lambda_j \partial^2 g_j/\partial q_a\partial q_b`
+    with the multipliers read from ``lam[j]``.
+    """
+    pieces = system.constraint_pieces
+    if pieces is None:
+        return {}
+    m = system.m
+    rename = dict(rename)
+    rename[system.time_symbol] = sp.Symbol("t", real=True)
+    lam = [sp.Symbol(f"lam[{j}]", real=True) for j in range(m)]
+
+    def flat(name: str, matrix: sp.Matrix) -> tuple[tuple[str, sp.Expr], ...]:
+        return tuple((f"{name}[{k}]", e.xreplace(rename)) for k, e in enumerate(matrix) if e != 0)
+
+    return {
+        "m": m,
+        "constraint_entries": flat("g", pieces.g),
+        "constraint_jacobian_entries": flat("Gq", pieces.jacobian),
+        "constraint_rate_entries": flat("gt", pieces.rate),
+        "constraint_hessian_entries": flat("Hg", pieces.contracted_hessian(lam)),
+    }
+
+
+def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
+    """SHA-256 naming the cache entry of ``spec`` for ``backend`` at ``backend_version``.
+
+    The expressions, the generator's version and Python's version: the loops
+    are not part of it (they are cached once per machine, apart).
+    """
+    h = hashlib.sha256()
+    for part in (
+        GENERATOR_VERSION,
+        backend,
+        backend_version,
+        sys.version,
+        repr((spec.n, spec.n_params, spec.autonomous, spec.has_Lqv, spec.banded, spec.has_fv)),
+        repr(
+            (
+                spec.half_bandwidth,
+                spec.pattern,
+                spec.m,
+                spec.periodic,
+                spec.separable,
+                spec.diagonal_mass,
+            )
+        ),
+        *(f"{k}={sp.srepr(e)}" for k, e in spec.constraint_parts),
+        sp.srepr(spec.lagrangian),
+        *(f"{k}={sp.srepr(e)}" for k, e in spec.hessian_entries),
+    ):
+        h.update(part.encode())
+        h.update(b"\0")
+    return h.hexdigest()

@@ -1,0 +1,35 @@
+"""The time loops, compiled once per machine and shared by every system.
+
+Each loop family is one module of plain numba code: :mod:`.general` (Newton on
+the stage equations, any regular Lagrangian, forces, time dependence, dense or
+banded Jacobians), :mod:`.linear` (quadratic Lagrangians: one factorisation
+per run), :mod:`.explicit` (Störmer–Verlet), :mod:`.stage_form` (separable
+Lagrangians: Newton on the implicit stages only) and :mod:`.constrained`
+(holonomic constraints with momentum projection). Their shared pieces:
+:mod:`.common`, :mod:`.linalg`, :mod:`.point` (calls of the per-system point
+functions by address) and :mod:`.traits` (the structure flags, as data).
+
+A loop's arguments never name a system: the point functions arrive as
+addresses in an int64 array, the structure as ``traits``, ``pattern`` and
+``periodic``, the method as its tables. So numba compiles each loop once per
+machine and argument types and caches it (:mod:`._jit` says where);
+:mod:`.warmup` compiles all of them ahead of use.
+"""
+
+from __future__ import annotations
+
+from ._jit import loop_cache_dir  # registers the cache locator before any loop is defined
+from .constrained import constrained_loop
+from .explicit import explicit_loop
+from .general import general_loop
+from .linear import linear_loop
+from .stage_form import stage_form_loop
+
+__all__ = [
+    "constrained_loop",
+    "explicit_loop",
+    "general_loop",
+    "linear_loop",
+    "loop_cache_dir",
+    "stage_form_loop",
+]

@@ -1,0 +1,109 @@
+"""The two decorators of the loops and where numba caches what they compile.
+
+``kernel`` marks a helper: compiled into (inlined in) every loop that calls
+it, never on its own. ``driver`` marks a loop's entry point: compiled once per
+machine and argument types and cached on disk by numba.
+
+numba would cache a driver beside its source file, and judge staleness by that
+file alone; a driver inlines helpers from several modules, so an edit to one
+of them would go unnoticed. :class:`LoopCacheLocator` puts the cache of every
+driver under :func:`galerkin_vi.cache.cache_root` in a folder named after a
+hash of all loop sources (and numba's and Python's versions): any edit, or a
+new package version, starts a fresh folder.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import sys
+from functools import cache
+from pathlib import Path
+
+import numba
+from numba import njit
+from numba.core import caching
+
+from ..cache import cache_root, discard_unreadable
+
+__all__ = ["LoopCacheLocator", "driver", "kernel", "loop_cache_dir"]
+
+_PACKAGE = Path(__file__).resolve().parent.parent
+# every source a compiled loop is made of
+_SOURCES = ("newton.py", "loops")
+
+
+@cache
+def _source_hash() -> str:
+    h = hashlib.sha256()
+    for name in _SOURCES:
+        path = _PACKAGE / name
+        files = sorted(path.glob("*.py")) if path.is_dir() else [path]
+        for file in files:
+            h.update(file.name.encode())
+            h.update(file.read_bytes())
+    return h.hexdigest()[:20]
+
+
+@cache
+def loop_cache_dir() -> Path:
+    """The folder of the loops' compiled code for this package, numba and Python.
+
+    Fixed for the process when the loops are first imported (numba binds each
+    loop's cache to a folder then); ``GALERKIN_VI_CACHE_DIR`` set later does
+    not move it.
+    """
+    tag = f"numba{numba.__version__}-py{sys.version_info.major}{sys.version_info.minor}"
+    return cache_root() / "loops" / f"{tag}-{_source_hash()}"
+
+
+class LoopCacheLocator(caching._CacheLocator):
+    """numba cache locator for the drivers of :mod:`galerkin_vi.loops`."""
+
+    def __init__(self, py_func, py_file):
+        self._py_file = py_file
+        self._lineno = py_func.__code__.co_firstlineno
+        self._cache_path = str(loop_cache_dir())
+
+    def get_cache_path(self):
+        return self._cache_path
+
+    def get_source_stamp(self):
+        return _source_hash()
+
+    def get_disambiguator(self):
+        return str(self._lineno)
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        try:
+            inside = Path(py_file).resolve().parent == Path(__file__).resolve().parent
+        except OSError:
+            return None
+        if not inside:
+            return None
+        locator = cls(py_func, py_file)
+        try:
+            locator.ensure_cache_path()
+        except OSError:
+            return None  # unwritable: numba's own locators decide
+        return locator
+
+
+def _register_locator() -> None:
+    # numba 0.68 renamed _CacheImpl to CacheImpl; without either, numba's own
+    # locators cache the loops beside their sources (staleness by file date)
+    impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
+    classes = getattr(impl, "_locator_classes", None)
+    if isinstance(classes, list) and LoopCacheLocator not in classes:
+        classes.insert(0, LoopCacheLocator)
+
+
+_register_locator()
+# a truncated index or data file (a killed writer, a full disk) would make numba
+# raise instead of compiling again
+discard_unreadable(loop_cache_dir())
+
+# numba's NumPy error model: a division by zero gives inf or NaN, which the loops
+# report as a failed step with the partial trajectory, instead of raising out of them
+kernel = njit(inline="always", error_model="numpy", cache=False)
+driver = njit(cache=True, error_model="numpy", nogil=True)

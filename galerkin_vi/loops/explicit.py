@@ -1,0 +1,146 @@
+r"""The explicit loop: Störmer–Verlet, the degree-1 two-point Lobatto method.
+
+For a separable :math:`L = \tfrac12 v^TMv + a(t)\cdot v - V(t, q)` the stage
+equation is linear in :math:`q_{k+1}` and solved in closed form, with
+:math:`M^{-1}` computed once:
+
+.. math::
+
+    v = M^{-1}\big(p_k + \tfrac h2 L_q(t_k, q_k) - \bar a\big),\quad
+    q_{k+1} = q_k + h v,\quad
+    p_{k+1} = p_k + \tfrac h2 \big(L_q(t_k, q_k) + L_q(t_{k+1}, q_{k+1})\big),
+
+with :math:`\bar a = \tfrac12(a(t_k) + a(t_{k+1}))` and :math:`a(t) = L_v(t, q, 0)`.
+"""
+
+# ruff: noqa: N803, N806
+from __future__ import annotations
+
+import numpy as np
+
+from ._jit import driver, kernel
+from .common import STATUS_NONFINITE, STATUS_OK, save_row, wrap_angles
+from .point import point_gradient
+from .traits import AUTONOMOUS, HAS_PERIODIC
+
+__all__ = ["explicit_loop"]
+
+
+@kernel
+def _velocity_step(qk, q_lost, rhs, Minv, h, has_periodic):
+    """q += h M^{-1} rhs, compensated when angles are to be wrapped exactly."""
+    n = qk.shape[0]
+    for a in range(n):
+        acc = 0.0
+        for b in range(n):
+            acc += Minv[a, b] * rhs[b]
+        if has_periodic:
+            y = h * acc - q_lost[a]
+            total = qk[a] + y
+            q_lost[a] = (total - qk[a]) - y
+            qk[a] = total
+        else:
+            qk[a] += h * acc
+
+
+@kernel
+def _diagonal_velocity_step(qk, q_lost, rhs, Minv_diagonal, h, has_periodic):
+    """As :func:`_velocity_step` for a diagonal M: n, not n^2, per step."""
+    n = qk.shape[0]
+    for a in range(n):
+        acc = Minv_diagonal[a] * rhs[a]
+        if has_periodic:
+            y = h * acc - q_lost[a]
+            total = qk[a] + y
+            q_lost[a] = (total - qk[a]) - y
+            qk[a] = total
+        else:
+            qk[a] += h * acc
+
+
+@driver
+def explicit_loop(
+    fn,
+    traits,
+    periodic,
+    q0,
+    p0,
+    t0,
+    h,
+    n_steps,
+    save_every,
+    prm,
+    Minv,
+    Minv_diagonal,
+    t_out,
+    q_out,
+    p_out,
+    turns_out,
+):
+    r"""Run ``n_steps`` Störmer–Verlet steps from (q0, p0).
+
+    ``Minv`` is :math:`M^{-1}`; ``Minv_diagonal`` its diagonal when :math:`M`
+    is diagonal (point masses: n, not :math:`n^2`, per step), else ``None``
+    (a separate compiled variant, so that the dense product is not even in the
+    diagonal one). Returns (status, steps completed, rows saved).
+    """
+    n = q0.shape[0]
+    autonomous = traits[AUTONOMOUS] != 0
+    has_periodic = traits[HAS_PERIODIC] != 0
+    qk = q0.copy()
+    q_lost = np.zeros(n)
+    turns = np.zeros(n)
+    if has_periodic:
+        wrap_angles(qk, q_lost, turns, periodic)
+    pk = p0.copy()
+    zero = np.zeros(n)
+    lq = np.zeros(n)
+    lq_next = np.zeros(n)
+    a0 = np.zeros(n)
+    a1 = np.zeros(n)
+    rhs = np.zeros(n)
+    # the state before the step, restored on failure: the last good state is saved
+    q_before = np.zeros(n)
+    p_before = np.zeros(n)
+    lost_before = np.zeros(n)
+    turns_before = np.zeros(n)
+    saved = save_row(0, t0, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic)
+    point_gradient(fn, t0, qk, zero, prm, lq, a0)
+    point_gradient(fn, t0, qk, zero, prm, lq_next, a1)
+    for k in range(n_steps):
+        tk = t0 + k * h
+        tk1 = t0 + (k + 1) * h
+        if not autonomous:
+            point_gradient(fn, tk, qk, zero, prm, lq, a0)
+            point_gradient(fn, tk1, qk, zero, prm, lq_next, a1)
+        for a in range(n):
+            q_before[a] = qk[a]
+            p_before[a] = pk[a]
+            lost_before[a] = q_lost[a]
+            turns_before[a] = turns[a]
+            rhs[a] = pk[a] + 0.5 * h * lq[a] - 0.5 * (a0[a] + a1[a])
+        if Minv_diagonal is None:
+            _velocity_step(qk, q_lost, rhs, Minv, h, has_periodic)
+        else:
+            _diagonal_velocity_step(qk, q_lost, rhs, Minv_diagonal, h, has_periodic)
+        if has_periodic:
+            wrap_angles(qk, q_lost, turns, periodic)
+        point_gradient(fn, tk1, qk, zero, prm, lq_next, a1)
+        finite = True
+        for a in range(n):
+            pk[a] += 0.5 * h * (lq[a] + lq_next[a])
+            lq[a] = lq_next[a]
+            if not abs(pk[a]) < 1e300 or not abs(qk[a]) < 1e300:
+                finite = False
+        if not finite:
+            if k % save_every != 0:
+                saved = save_row(
+                    saved, tk, q_before, lost_before, turns_before, p_before, t_out, q_out,
+                    p_out, turns_out, periodic,
+                )  # fmt: skip
+            return STATUS_NONFINITE, k, saved
+        if (k + 1) % save_every == 0 or k + 1 == n_steps:
+            saved = save_row(
+                saved, tk1, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic
+            )
+    return STATUS_OK, n_steps, saved

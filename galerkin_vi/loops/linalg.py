@@ -1,0 +1,143 @@
+r"""Storage, assembly and LU factorisation of the stage Jacobian, dense or banded.
+
+The Newton iterations of :mod:`galerkin_vi.newton` (the stopping rule, dense
+and banded LU) are plain Python shared with the NumPy reference backend; here
+they are compiled into the loops. The stage Jacobian is stored dense,
+``(s n, s n)`` node-major, or, when the coordinates couple only within a band
+of half-width :math:`w` (``traits[BAND] = w``), as a LAPACK band matrix
+ordered coordinate-major, with half-bandwidth :math:`(w + 1) s - 1`.
+"""
+
+# ruff: noqa: N803, N806
+from __future__ import annotations
+
+import numpy as np
+
+from .. import newton
+from ._jit import kernel
+from .traits import BAND, HAS_FV, HAS_LQV
+
+__all__ = [
+    "CONTINUE",
+    "CONVERGED",
+    "add_block",
+    "factor_jacobian",
+    "lu_factor_inplace",
+    "lu_solve_inplace",
+    "new_jacobian",
+    "newton_status",
+    "solve_jacobian",
+    "unknown",
+]
+
+CONTINUE = newton.CONTINUE
+CONVERGED = newton.CONVERGED
+newton_status = kernel(newton.newton_status)
+lu_factor_inplace = kernel(newton.lu_factor_inplace)
+lu_solve_inplace = kernel(newton.lu_solve_inplace)
+band_lu_factor = kernel(newton.band_lu_factor)
+band_lu_solve = kernel(newton.band_lu_solve)
+
+
+@kernel
+def band_half_width(s, band):
+    """Half-bandwidth of the stage Jacobian ordered coordinate-major, (w + 1) s - 1."""
+    return (band + 1) * s - 1
+
+
+@kernel
+def unknown(nu, a, s, n, banded):
+    """Position of coordinate a of control point nu (0-based among the unknowns).
+
+    Node-major (nu n + a) for dense storage; coordinate-major (a s + nu) for
+    banded storage, which keeps coupled coordinates' unknowns close together.
+    """
+    if banded:
+        return a * s + nu
+    return nu * n + a
+
+
+@kernel
+def block_size(n, traits, pattern):
+    """Length of the flat second-derivative arrays: n^2 dense, the pattern's size banded."""
+    if traits[BAND] >= 0:
+        return pattern.shape[0]
+    return n * n
+
+
+@kernel
+def new_jacobian(s, n, traits):
+    """Zero stage Jacobian: banded storage (3 kb + 1, s n) or dense (s n, s n)."""
+    if traits[BAND] >= 0:
+        return np.zeros((3 * band_half_width(s, traits[BAND]) + 1, s * n))
+    return np.zeros((s * n, s * n))
+
+
+@kernel
+def add_block(K, nu, mu, s, n, w_vv, Lvv, w_qq, Lqq, w_qv, w_vq, Lqv, Fv, traits, pattern):
+    r"""Add to block (equation nu, control point mu) of K the point-wise second derivatives.
+
+    Block :math:`(\nu, \mu)` gains
+    :math:`w_{vv} L_{vv} + w_{qq} (L_{qq} + f_q) + w_{qv} (L_{qv} + f_v) + w_{vq} L_{qv}^T`,
+    with the blocks stored flat (``a n + c``, or the pattern position when banded;
+    ``pattern[k] = (row, column, position of the transposed entry)``).
+    """
+    has_lqv = traits[HAS_LQV] != 0
+    has_fv = traits[HAS_FV] != 0
+    band = traits[BAND]
+    if band >= 0:
+        kb = band_half_width(s, band)
+        for k in range(pattern.shape[0]):
+            a = pattern[k, 0]
+            cc = pattern[k, 1]
+            value = w_vv * Lvv[k]
+            if w_qq != 0.0:
+                value += w_qq * Lqq[k]
+            if has_lqv:
+                value += w_qv * Lqv[k] + w_vq * Lqv[pattern[k, 2]]
+            if has_fv:
+                value += w_qv * Fv[k]
+            i = a * s + nu
+            j = cc * s + mu - 1
+            K[2 * kb + i - j, j] += value
+        return
+    row0 = nu * n
+    col0 = (mu - 1) * n
+    if w_vv != 0.0:
+        for a in range(n):
+            for cc in range(n):
+                K[row0 + a, col0 + cc] += w_vv * Lvv[a * n + cc]
+    # collocated Lobatto nodes (Phi = I): L_qq only on the diagonal blocks
+    if w_qq != 0.0:
+        for a in range(n):
+            for cc in range(n):
+                K[row0 + a, col0 + cc] += w_qq * Lqq[a * n + cc]
+    if has_lqv and (w_qv != 0.0 or w_vq != 0.0):
+        for a in range(n):
+            for cc in range(n):
+                K[row0 + a, col0 + cc] += w_qv * Lqv[a * n + cc] + w_vq * Lqv[cc * n + a]
+    if has_fv and w_qv != 0.0:
+        for a in range(n):
+            for cc in range(n):
+                K[row0 + a, col0 + cc] += w_qv * Fv[a * n + cc]
+
+
+@kernel
+def factor_jacobian(K, piv, s, traits):
+    """LU-factorise K in place (banded or dense); False if singular."""
+    band = traits[BAND]
+    if band >= 0:
+        kb = band_half_width(s, band)
+        return band_lu_factor(K, piv, kb, kb)
+    return lu_factor_inplace(K, piv)
+
+
+@kernel
+def solve_jacobian(K, piv, s, R, traits):
+    """Overwrite R with K^{-1} R from :func:`factor_jacobian`'s factors."""
+    band = traits[BAND]
+    if band >= 0:
+        kb = band_half_width(s, band)
+        band_lu_solve(K, piv, kb, kb, R)
+    else:
+        lu_solve_inplace(K, piv, R)

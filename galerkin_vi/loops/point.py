@@ -1,0 +1,174 @@
+r"""Calls of a system's point functions by address, from compiled loops.
+
+The time loops are compiled once per machine; what differs between systems
+are only the point functions (:math:`L_q + f`, :math:`L_v`, the second
+derivatives, the constraints), which :mod:`galerkin_vi.codegen` compiles per
+system as C-callable functions. A loop receives their addresses as int64
+values in the array ``fn`` (slots below) and calls them through the
+intrinsics here: an ``inttoptr`` and a call. Since no argument type names the
+function, numba's disk cache of a loop holds for every system.
+
+C signatures (every array argument is a ``double *`` to the first element of a
+C-contiguous float64 array):
+
+=====================  ===================================================================
+slot                   function
+=====================  ===================================================================
+``GRADIENT``           ``void(double t, q, v, prm, Lq, Lv)``
+``HESSIAN``            ``void(double t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)``
+``LAGRANGIAN``         ``double(double t, q, v, prm)``
+``CONSTRAINT``         ``void(double t, q, prm, g)``
+``CONSTRAINT_JAC``     ``void(double t, q, prm, Gq)``
+``CONSTRAINT_RATE``    ``void(double t, q, prm, gt)``
+``CONSTRAINT_HESS``    ``void(double t, q, lam, prm, Hg)``
+=====================  ===================================================================
+
+Entries that are identically zero are never written: the loops zero those
+arrays once. An address of 0 marks a function the loop does not need.
+"""
+
+# ruff: noqa: N803, N806
+from __future__ import annotations
+
+from llvmlite import ir
+from numba import types
+from numba.core.errors import TypingError
+from numba.extending import intrinsic
+
+from ._jit import kernel
+
+__all__ = [
+    "CONSTRAINT",
+    "CONSTRAINT_HESS",
+    "CONSTRAINT_JAC",
+    "CONSTRAINT_RATE",
+    "GRADIENT",
+    "HESSIAN",
+    "LAGRANGIAN",
+    "N_SLOTS",
+    "point_constraint",
+    "point_constraint_hessian",
+    "point_constraint_jacobian",
+    "point_constraint_rate",
+    "point_gradient",
+    "point_hessian",
+]
+
+GRADIENT = 0
+HESSIAN = 1
+LAGRANGIAN = 2
+CONSTRAINT = 3
+CONSTRAINT_JAC = 4
+CONSTRAINT_RATE = 5
+CONSTRAINT_HESS = 6
+N_SLOTS = 7
+
+
+def _check_arrays(arrays) -> None:
+    for array in arrays:
+        if not (
+            isinstance(array, types.Array)
+            and array.dtype == types.float64
+            and array.ndim == 1
+            and array.layout == "C"
+        ):
+            raise TypingError(f"point functions take C-contiguous float64 vectors, got {array}")
+
+
+def _emit_call(context, builder, signature, args, returns_double: bool):
+    """``f(t, data(a1), ..., data(ak))`` with ``f`` the function at ``args[0]``."""
+    address, t, *arrays = args
+    pointers = []
+    for array_type, value in zip(signature.args[2:], arrays, strict=True):
+        pointers.append(context.make_array(array_type)(context, builder, value).data)
+    double = ir.DoubleType()
+    result_type = double if returns_double else ir.VoidType()
+    function_type = ir.FunctionType(result_type, [double] + [double.as_pointer()] * len(pointers))
+    function = builder.inttoptr(address, function_type.as_pointer())
+    result = builder.call(function, [t, *pointers])
+    return result if returns_double else context.get_dummy_value()
+
+
+def _typer(address, t, arrays, returns_double=False):
+    """Signature and code generator of ``call(address, t, *arrays)``."""
+    if not isinstance(address, types.Integer):
+        raise TypingError(f"a point function's address is an integer, got {address}")
+    _check_arrays(arrays)
+    result = types.float64 if returns_double else types.void
+    signature = result(address, types.float64, *arrays)
+
+    def codegen(context, builder, sig, args):
+        t_value = context.cast(builder, args[1], sig.args[1], types.float64)
+        return _emit_call(context, builder, sig, [args[0], t_value, *args[2:]], returns_double)
+
+    return signature, codegen
+
+
+# numba's @intrinsic reads the parameter names: one explicit definition per arity
+@intrinsic
+def _call3(typingctx, address, t, a1, a2, a3):
+    return _typer(address, t, (a1, a2, a3))
+
+
+@intrinsic
+def _call3_double(typingctx, address, t, a1, a2, a3):
+    return _typer(address, t, (a1, a2, a3), returns_double=True)
+
+
+@intrinsic
+def _call4(typingctx, address, t, a1, a2, a3, a4):
+    return _typer(address, t, (a1, a2, a3, a4))
+
+
+@intrinsic
+def _call5(typingctx, address, t, a1, a2, a3, a4, a5):
+    return _typer(address, t, (a1, a2, a3, a4, a5))
+
+
+@intrinsic
+def _call9(typingctx, address, t, a1, a2, a3, a4, a5, a6, a7, a8, a9):
+    return _typer(address, t, (a1, a2, a3, a4, a5, a6, a7, a8, a9))
+
+
+@kernel
+def point_gradient(fn, t, q, v, prm, Lq, Lv):
+    """Write :math:`L_q + f` into ``Lq`` and :math:`L_v` into ``Lv`` at (t, q, v)."""
+    _call5(fn[GRADIENT], t, q, v, prm, Lq, Lv)
+
+
+@kernel
+def point_hessian(fn, t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv):
+    """The gradient and the flat second derivatives (:math:`L_{qq} + f_q`, :math:`L_{qv}`,
+    :math:`L_{vv}`, and :math:`f_v` when the forces depend on v)."""
+    _call9(fn[HESSIAN], t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
+
+
+@kernel
+def lagrangian(fn, t, q, v, prm):
+    """Return :math:`L(t, q, v)`."""
+    return _call3_double(fn[LAGRANGIAN], t, q, v, prm)
+
+
+@kernel
+def point_constraint(fn, t, q, prm, g):
+    """Write the constraint values :math:`g_j(t, q)` into ``g``."""
+    _call3(fn[CONSTRAINT], t, q, prm, g)
+
+
+@kernel
+def point_constraint_jacobian(fn, t, q, prm, Gq):
+    r"""Write :math:`\partial g_j/\partial q_a` into ``Gq[j n + a]``."""
+    _call3(fn[CONSTRAINT_JAC], t, q, prm, Gq)
+
+
+@kernel
+def point_constraint_rate(fn, t, q, prm, gt):
+    r"""Write :math:`\partial g_j/\partial t` into ``gt``."""
+    _call3(fn[CONSTRAINT_RATE], t, q, prm, gt)
+
+
+@kernel
+def point_constraint_hessian(fn, t, q, lam, prm, Hg):
+    r"""Write :math:`\sum_j \lambda_j \partial^2 g_j/\partial q_a\partial q_b` into
+    ``Hg[a n + b]``."""
+    _call4(fn[CONSTRAINT_HESS], t, q, lam, prm, Hg)
