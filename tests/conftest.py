@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
+import sys
 import warnings
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
@@ -11,6 +13,12 @@ from hypothesis import settings
 import galerkin_vi as gvi
 
 os.environ.setdefault("GALERKIN_VI_CACHE_DIR", os.path.join(os.getcwd(), ".gvi-test-cache"))
+
+#: the repository's benchmarks/ folder: its ``peers`` package (hand-written kernels, peer
+#: adapters) is not installed with galerkin_vi; appended, so it never shadows an installed module
+BENCHMARKS_DIR = Path(__file__).resolve().parents[1] / "benchmarks"
+if str(BENCHMARKS_DIR) not in sys.path:
+    sys.path.append(str(BENCHMARKS_DIR))
 
 # The default run is deterministic: the same examples every time, so a CI result does not
 # depend on the draw (an order study of a randomly drawn pendulum can land in the
