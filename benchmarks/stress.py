@@ -19,9 +19,9 @@ reports the figures of the three scenarios.
   forward-then-backward runs over spans T: the return error |q_back(0) - q0|
   against eps exp(S(T)) and eps exp(lambda T). A symmetric method returns to
   round-off amplified by the dynamics, so the error grows at the Lyapunov rate.
-- **Many degrees of freedom.** The FPU-beta spring chain of the benchmark
-  suite (:func:`galerkin_vi.bench.cases.chain_problem`) with N = 10 ... 1000
-  masses: cost per step (best of interleaved repeats, compilation and the
+- **Many degrees of freedom.** The FPU-beta spring chain of the peer benchmark
+  (:func:`peers.cases.chain_problem` in ``benchmarks/peers/cases.py``) with
+  N = 10 ... 1000 masses: cost per step (best of interleaved repeats, compilation and the
   fixed cost of an ``integrate`` call excluded) of the default loop
   (constant-mass iteration) and of full Newton (``specialize=False``, a banded
   LU of the stage Jacobian every iteration), the log-log slope of cost
@@ -58,7 +58,12 @@ from numpy.typing import NDArray
 
 import galerkin_vi as gvi
 from galerkin_vi import problems
-from galerkin_vi.bench import cases
+
+_HERE = str(Path(__file__).resolve().parent)
+if _HERE not in sys.path:  # loaded from a file path (tests) rather than run as a script
+    sys.path.insert(0, _HERE)
+
+from peers import cases  # noqa: E402
 
 EPS = float(np.finfo(float).eps)
 DRIFT_BOUND = 2.0  # the criterion: max over the last tenth <= 2x the first tenth

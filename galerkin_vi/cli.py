@@ -1,8 +1,10 @@
 """The ``galerkin-vi`` command line.
 
 ``galerkin-vi verify`` runs the order study (the project's main job);
-``galerkin-vi bench`` the work-precision benchmark; ``galerkin-vi warmup``
-compiles the time loops once for the machine.
+``galerkin-vi bench`` measures work-precision curves of galerkin_vi's methods on a
+model (:mod:`galerkin_vi.benchmark`). The comparison with hand-written kernels,
+scipy and REBOUND is ``python benchmarks/run.py`` in the repository.
+``galerkin-vi warmup`` compiles the time loops once for the machine.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ import sys
 import time
 from collections.abc import Sequence
 
-from . import bench, report
+from . import report
 
 __all__ = ["main"]
 
@@ -82,6 +84,127 @@ def _verify(args: argparse.Namespace) -> int:
     return 1 if failures else 0
 
 
+def _bench(args: argparse.Namespace) -> int:
+    from . import benchmark
+
+    try:
+        chosen = [PROBLEMS[name].factory() for name in args.problems]
+        chosen += [report.load_problem(spec) for spec in args.problem or []]
+    except ValueError as exc:
+        print(f"galerkin-vi bench: {exc}", file=sys.stderr)
+        return 2
+    if not chosen:
+        print(
+            "galerkin-vi bench: name a model with --problem MODULE:ATTR (or --problems NAME)",
+            file=sys.stderr,
+        )
+        return 2
+
+    def log(msg: str) -> None:
+        print(msg, file=sys.stderr, flush=True)
+
+    start = time.perf_counter()
+    results = {}
+    for problem in chosen:
+        # holonomic constraints: collocated Lobatto only
+        families = ["lobatto"] if problem.system.m else args.families
+        methods = [(s, family) for s in args.degrees for family in families]
+        t_final = args.t_final if args.t_final is not None else problem.t_final
+        log(f"[{problem.name}] T = {t_final:g}, {len(methods)} methods")
+        try:
+            results[problem.name] = benchmark.work_precision(
+                problem.system,
+                problem.q0,
+                problem.v0,
+                t_final,
+                methods,
+                problem.reference,
+                params=problem.params,
+                targets=args.targets,
+                n_start=args.n_start,
+                step_factor=args.step_factor,
+                time_cap=args.time_cap,
+                repeats=args.repeats,
+                log=log,
+            )
+        except (ValueError, NotImplementedError) as exc:
+            print(f"galerkin-vi bench: {problem.name}: {exc}", file=sys.stderr)
+            return 2
+        print(benchmark.markdown(results[problem.name], problem.name, points=False))
+    print(f"finished in {time.perf_counter() - start:.1f} s")
+    if args.output:
+        for path in benchmark.write_outputs(results, args.output):
+            print(f"wrote {path}")
+    return 0
+
+
+def _add_bench(sub: argparse._SubParsersAction) -> None:
+    from .benchmark import TARGETS
+
+    parser = sub.add_parser(
+        "bench",
+        help="work-precision curves of galerkin_vi's methods on your model",
+        description=(
+            "For each degree and quadrature family: run time (minimum of repeats) against the "
+            "final relative position error over a geometric sweep of step counts, the largest "
+            "relative energy error, and the time to reach each target error; prints a table "
+            "per model and, with --output, writes work_precision.json, work_precision.md and "
+            "plots. The comparison with hand-written kernels, scipy and REBOUND is "
+            "'python benchmarks/run.py' in the repository. Exit status 2 on bad arguments."
+        ),
+    )
+    parser.add_argument(
+        "--problem",
+        action="append",
+        metavar="MODULE:ATTR",
+        help="a galerkin_vi.problems.Problem (or a callable returning one); repeatable",
+    )
+    parser.add_argument(
+        "--problems",
+        nargs="*",
+        choices=sorted(PROBLEMS),
+        default=[],
+        metavar="NAME",
+        help=f"library problems (default: none); one of {', '.join(sorted(PROBLEMS))}",
+    )
+    parser.add_argument(
+        "--degrees", nargs="+", type=int, default=[1, 2, 3, 4], help="degrees s (default 1-4)"
+    )
+    parser.add_argument(
+        "--families",
+        nargs="+",
+        choices=sorted(FAMILIES),
+        default=list(FAMILIES),
+        help="lobatto: Gauss-Lobatto with s+1 points; gauss: Gauss-Legendre with s points",
+    )
+    parser.add_argument(
+        "--t-final", type=float, metavar="T", help="span (default: the problem's t_final)"
+    )
+    parser.add_argument(
+        "--targets",
+        nargs="+",
+        type=float,
+        default=list(TARGETS),
+        help="final relative errors of the time-to-error table",
+    )
+    parser.add_argument("--n-start", type=int, default=16, help="first step count (16)")
+    parser.add_argument(
+        "--step-factor", type=float, default=2.0, help="ratio of successive step counts (2)"
+    )
+    parser.add_argument(
+        "--time-cap",
+        type=float,
+        default=0.2,
+        metavar="SECONDS",
+        help="a sweep stops once one run took longer than this (0.2)",
+    )
+    parser.add_argument("--repeats", type=int, default=2, help="timed runs per point (2)")
+    parser.add_argument(
+        "--output", metavar="DIR", help="write work_precision.json, .md and <model>_*.png"
+    )
+    parser.set_defaults(run=_bench)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``galerkin-vi``."""
     parser = argparse.ArgumentParser(
@@ -138,16 +261,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="write verify.json and <problem>_convergence.png (log-log error against h)",
     )
     verify.set_defaults(run=_verify)
-    bench_parser = sub.add_parser(
-        "bench",
-        help="work-precision benchmark against hand-written kernels and scipy",
-        description=(
-            "Run-time against error for galerkin_vi methods and, in the same run, hand-written "
-            "numba kernels and scipy's solve_ivp; prints ratios and writes a table, JSON and "
-            "(with matplotlib) plots."
-        ),
-    )
-    bench.add_arguments(bench_parser)
+    _add_bench(sub)
     warmup = sub.add_parser(
         "warmup",
         help="compile every time loop once for this machine (otherwise done on first use)",

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
+import sys
 import warnings
+from pathlib import Path
 
 import pytest
 from hypothesis import settings
@@ -14,6 +16,12 @@ os.environ.setdefault("GALERKIN_VI_CACHE_DIR", os.path.join(os.getcwd(), ".gvi-t
 # the loops' cache folder is bound on import: here, before any test points
 # GALERKIN_VI_CACHE_DIR at a temporary folder of its own
 import galerkin_vi.loops  # noqa: E402, F401
+
+#: the repository's benchmarks/ folder: its ``peers`` package (hand-written kernels, peer
+#: adapters) is not installed with galerkin_vi; appended, so it never shadows an installed module
+BENCHMARKS_DIR = Path(__file__).resolve().parents[1] / "benchmarks"
+if str(BENCHMARKS_DIR) not in sys.path:
+    sys.path.append(str(BENCHMARKS_DIR))
 
 # The default run is deterministic: the same examples every time, so a CI result does not
 # depend on the draw (an order study of a randomly drawn pendulum can land in the

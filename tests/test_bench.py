@@ -1,4 +1,7 @@
-"""Smoke tests of the benchmark suite: the hand-written peers are the methods they claim to be.
+"""Smoke tests of the peer benchmark: the hand-written peers are the methods they claim to be.
+
+The peer benchmark is the ``peers`` package in the repository's ``benchmarks/`` folder
+(not installed; ``tests/conftest.py`` puts the folder on ``sys.path``).
 
 No timing is asserted: benchmarks are not tests. The equivalences below are
 what makes the per-step comparison like-for-like (same method, same h, same
@@ -9,18 +12,23 @@ beside each tolerance.
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import math
 import warnings
 
 import numpy as np
+import peers
 import pytest
+from peers import cases
+from peers import handwritten as hw
+from peers import workprecision as wp
 
 import galerkin_vi as gvi
-from galerkin_vi import bench, problems
-from galerkin_vi.bench import cases
-from galerkin_vi.bench import handwritten as hw
-from galerkin_vi.bench import workprecision as wp
-from galerkin_vi.bench.workprecision import time_to_error
+from galerkin_vi import benchmark as bm
+from galerkin_vi import problems
+from galerkin_vi.benchmark import time_to_error
+
+from .conftest import BENCHMARKS_DIR
 
 
 @pytest.fixture(scope="module")
@@ -229,7 +237,7 @@ def test_time_to_error_interpolates_log_log():
 
 
 def test_run_tiny_configuration_returns_expected_keys(tmp_path):
-    results = bench.run(quick=True, output=str(tmp_path), config=bench.tiny_config(), verbose=False)
+    results = peers.run(quick=True, output=str(tmp_path), config=peers.tiny_config(), verbose=False)
     assert set(results) >= {"meta", "problems", "per_step", "files"}
     entry = results["problems"]["kepler"]
     assert set(entry) >= {"curves", "time_to_error", "best_galerkin_vi", "ratio_peer_over_best"}
@@ -249,12 +257,12 @@ def test_run_tiny_configuration_returns_expected_keys(tmp_path):
 def test_run_tiny_configuration_on_new_problems(tmp_path):
     """A separable and a non-separable new problem: hand-written peers only where they apply."""
     cfg = dataclasses.replace(
-        bench.tiny_config(),
+        peers.tiny_config(),
         problems=("henon_heiles", "double_pendulum"),
         peers=("numbalsoda",),
         per_step_problems=(),
     )
-    results = bench.run(quick=True, output=str(tmp_path), config=cfg, verbose=False)
+    results = peers.run(quick=True, output=str(tmp_path), config=cfg, verbose=False)
     hh = results["problems"]["henon_heiles"]
     dp = results["problems"]["double_pendulum"]
     families = {c["family"] for c in hh["curves"].values()}
@@ -272,9 +280,9 @@ def test_run_tiny_configuration_on_new_problems(tmp_path):
 
 
 def test_tolerance_sweeps_end_at_the_floor():
-    assert wp._rtols(1e-3, 3e-14, 10.0)[-2:] == [1e-13, 3e-14]
-    assert wp._rtols(1e-3, 1e-6, 10.0) == [1e-3, 1e-4, 1e-5, 1e-6]
-    assert wp._step_counts(50, 2.0)[:3] == [50, 100, 200]
+    assert bm.tolerances(1e-3, 3e-14, 10.0)[-2:] == [1e-13, 3e-14]
+    assert bm.tolerances(1e-3, 1e-6, 10.0) == [1e-3, 1e-4, 1e-5, 1e-6]
+    assert bm.step_counts(50, 2.0)[:3] == [50, 100, 200]
 
 
 def test_chain_cost_rows_and_growth():
@@ -291,14 +299,32 @@ def test_chain_cost_rows_and_growth():
 def test_cli_arguments_parse():
     import argparse
 
-    parser = bench.add_arguments(argparse.ArgumentParser())
+    parser = peers.add_arguments(argparse.ArgumentParser())
     args = parser.parse_args(["--quick", "--output", "out"])
-    assert args.quick and args.output == "out" and args.run is bench.main
+    assert args.quick and args.output == "out" and args.run is peers.main
     args = parser.parse_args(["--problems", "outer_solar_system", "fpu", "--no-chain-cost"])
     assert args.problems == ["outer_solar_system", "fpu"] and args.no_chain_cost
 
 
 def test_problem_lists_agree():
-    assert bench.PROBLEMS == cases.PROBLEMS == wp.PROBLEMS
-    assert set(bench.quick_config().problems) < set(cases.PROBLEMS)
-    assert bench.full_config().problems == wp.PROBLEMS
+    assert peers.PROBLEMS == cases.PROBLEMS == wp.PROBLEMS
+    assert set(peers.quick_config().problems) < set(cases.PROBLEMS)
+    assert peers.full_config().problems == wp.PROBLEMS
+
+
+def test_run_script_help(capsys):
+    """``python benchmarks/run.py --help``: the script loads the ``peers`` package."""
+    spec = importlib.util.spec_from_file_location("benchmarks_run", BENCHMARKS_DIR / "run.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    with pytest.raises(SystemExit) as exit_info:
+        module.main(["--help"])
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    assert "--quick" in out and "--no-chain-cost" in out
+
+
+def test_the_package_holds_no_peer_code():
+    """The peers live in benchmarks/ only: galerkin_vi has no ``bench`` subpackage."""
+    assert importlib.util.find_spec("galerkin_vi.bench") is None
+    assert not hasattr(gvi, "bench")

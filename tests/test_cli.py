@@ -106,3 +106,44 @@ def test_a_bare_system_is_rejected_with_a_hint(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(tmp_path))
     with pytest.raises(ValueError, match="without initial data"):
         report.load_problem("bare_models:SYSTEM")
+
+
+def test_bench_runs_a_users_problem(tmp_path, monkeypatch, capsys):
+    (tmp_path / "bench_models.py").write_text(
+        textwrap.dedent(
+            """
+            import numpy as np
+            import sympy as sp
+            import galerkin_vi as gvi
+            from galerkin_vi.problems import Problem
+
+            q, v = sp.symbols("q v")
+            SYSTEM = gvi.LagrangianSystem(v**2 / 2 - q**4 / 4, [q], [v])
+
+            def quartic():
+                return Problem("quartic", SYSTEM, np.array([1.0]), np.array([0.0]), 2.0)
+            """
+        )
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    out_dir = tmp_path / "out"
+    argv = ["bench", "--problem", "bench_models:quartic", "--degrees", "1", "2"]
+    argv += ["--families", "gauss", "--time-cap", "0.005", "--repeats", "1"]
+    status = cli.main([*argv, "--output", str(out_dir)])
+    out = capsys.readouterr().out
+    assert status == 0
+    assert "# galerkin_vi work-precision: quartic" in out
+    assert "galerkin_vi s=1 Gauss(1)" in out and "galerkin_vi s=2 Gauss(2)" in out
+    data = json.loads((out_dir / "work_precision.json").read_text())
+    assert set(data["quartic"]["curves"]) == {
+        "galerkin_vi s=1 Gauss(1)",
+        "galerkin_vi s=2 Gauss(2)",
+    }
+    assert (out_dir / "quartic_precision.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_bench_needs_a_model(capsys):
+    assert cli.main(["bench"]) == 2
+    assert "--problem MODULE:ATTR" in capsys.readouterr().err
+    assert cli.main(["bench", "--problem", "no_such_module_xyz:thing"]) == 2
+    assert "cannot import" in capsys.readouterr().err

@@ -16,8 +16,9 @@ import sympy as sp
 import galerkin_vi as gvi
 from galerkin_vi import codegen, problems
 from galerkin_vi import integrator as integrator_module
-from galerkin_vi.bench.handwritten import gauss_tables, lobatto_tables
 from galerkin_vi.separable import has_stage_form, separable_tables
+
+from .butcher_tables import gauss_tables, lobatto_tables
 
 x, y, vx, vy, t = sp.symbols("x y vx vy t")
 

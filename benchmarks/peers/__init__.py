@@ -1,4 +1,9 @@
-"""Benchmark suite: galerkin_vi against hand-written numba kernels, scipy, numbalsoda and REBOUND.
+"""Peer benchmark: galerkin_vi against hand-written numba kernels, scipy, numbalsoda and REBOUND.
+
+This package lives in the repository's ``benchmarks/`` folder, not in the installed
+galerkin_vi (which keeps the user tool :mod:`galerkin_vi.benchmark`); it imports
+galerkin_vi, never the reverse. Put ``benchmarks/`` on ``sys.path`` to import it
+(``python benchmarks/run.py`` does so by running from there).
 
 Entry points
 ------------
@@ -7,11 +12,12 @@ Entry points
     results as plain data and optionally write results.json, results.md and
     (when matplotlib is importable) PNG work-precision plots to a folder.
 :func:`add_arguments`, :func:`main`
-    The ``galerkin-vi bench [--quick] [--output DIR]`` sub-command: ``add_arguments``
-    fills an ``argparse`` (sub)parser, ``main(args)`` runs it and returns an exit status.
+    The ``python benchmarks/run.py [--quick] [--output DIR]`` command: ``add_arguments``
+    fills an ``argparse`` parser, ``main(args)`` runs it and returns an exit status.
 
-See :mod:`galerkin_vi.bench.workprecision` for what is measured and
-:mod:`galerkin_vi.bench.handwritten` for the hand-written peers.
+Modules: :mod:`.workprecision` (what is measured, configurations, curves, per-step and
+chain-cost tables), :mod:`.cases` (the problems and their references),
+:mod:`.handwritten` (the hand-written kernels), :mod:`.output` (tables, JSON, plots).
 """
 
 from __future__ import annotations
@@ -98,7 +104,8 @@ def run(
         "best_galerkin_vi", "ratio_peer_over_best", ...}}, "per_step": [...],
         "chain_cost": [...], "files": [...]}``.
     """
-    from .workprecision import full_config, quick_config, run_benchmark, write_outputs
+    from .output import write_outputs
+    from .workprecision import full_config, quick_config, run_benchmark
 
     cfg = config if config is not None else (quick_config() if quick else full_config())
     if problems is not None:
@@ -116,7 +123,7 @@ def run(
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    """Add the ``bench`` options to ``parser`` (and set ``run=main`` as its default action)."""
+    """Add the benchmark's options to ``parser`` (and set ``run=main`` as its default action)."""
     parser.add_argument(
         "--quick",
         action="store_true",
@@ -145,7 +152,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 
 def main(args: argparse.Namespace) -> int:
-    """Run ``galerkin-vi bench`` with parsed ``args``; return the exit status (0)."""
+    """Run the benchmark with parsed ``args``; return the exit status (0)."""
     start = time.perf_counter()
     problems = tuple(args.problems) if getattr(args, "problems", None) else None
     results = run(

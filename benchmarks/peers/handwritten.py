@@ -82,7 +82,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from .. import newton
+from galerkin_vi import newton
 
 __all__ = [
     "DOUBLE_PENDULUM",

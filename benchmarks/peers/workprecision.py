@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import json
 import math
 import os
 import platform
@@ -59,6 +58,8 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 import galerkin_vi as gvi
+from galerkin_vi import benchmark as bm
+from galerkin_vi.benchmark import TARGETS, Curve, Sample, time_to_error
 
 from . import handwritten as hw
 from .cases import (
@@ -81,16 +82,14 @@ __all__ = [
     "BenchConfig",
     "Case",
     "chain_cost",
+    "chain_growth",
     "full_config",
     "make_case",
     "quick_config",
     "run_benchmark",
     "time_to_error",
     "tiny_config",
-    "write_outputs",
 ]
-
-TARGETS = (1e-4, 1e-8, 1e-11)
 
 #: per-step comparisons: label -> (galerkin_vi (degree, family), hand-written kernel)
 PER_STEP_PAIRS: dict[str, tuple[tuple[int, str], str]] = {
@@ -378,81 +377,28 @@ def tiny_config() -> BenchConfig:
     )
 
 
-# ---------------------------------------------------------------------- solvers
-@dataclass
-class Sample:
-    """Result of one untimed error run."""
-
-    q_final: NDArray[np.float64]
-    energy: NDArray[np.float64] | None
-    stats: dict
-
-
-@dataclass
-class Curve:
-    """One line of a work-precision diagram.
-
-    ``param_key`` names the swept parameter (``"n_steps"``, ``"rtol"`` or
-    ``"epsilon"``), ``sweep`` its values in sweep order.
-    """
-
-    label: str
-    family: str  # "galerkin_vi" | "hand-written" | "scipy" | "numbalsoda" | "REBOUND"
-    kind: str  # "fixed-step" | "adaptive"
-    order: int | None
-    sample: Callable[[float], Sample]  # error run (saves states for the energy)
-    timed: Callable[[float], object]  # timing run (final state only)
-    warm: Callable[[], object]  # compile or load, on a short run
-    param_key: str = "n_steps"
-    sweep: Sequence[float] = ()
-    points: list[dict] = field(default_factory=list)
-
-
-def _quadrature(s: int, family: str):
-    if family == "lobatto":
-        return gvi.gauss_lobatto(s + 1)
-    if family == "gauss":
-        return gvi.gauss_legendre(s)
-    raise ValueError(f"unknown quadrature family {family!r}")
-
-
+# ---------------------------------------------------------------------- curves
 def gvi_label(s: int, family: str) -> str:
     """Curve label of galerkin_vi degree ``s`` with the given quadrature family."""
-    return f"galerkin_vi s={s} " + (f"Lobatto({s + 1})" if family == "lobatto" else f"Gauss({s})")
-
-
-def _every(n: int, samples: int) -> int:
-    return max(1, n // samples)
+    return bm.method_label(gvi.Galerkin(s, bm.quadrature(s, family)))
 
 
 def _gvi_curve(case: Case, s: int, family: str, cfg: BenchConfig) -> Curve:
-    integ = gvi.Integrator(case.problem.system, gvi.Galerkin(s, _quadrature(s, family)))
-    q0, v0, T, prm = case.q0, case.v0, case.t_final, case.problem.params
-    samples = cfg.energy_samples
+    def energy(traj):
+        return case.energy_from_momenta(traj.q, traj.p, traj)
 
-    def timed(n):
-        return integ.integrate(q0, v0, h=T / n, n_steps=int(n), save_every=int(n), params=prm)
-
-    def sample(n):
-        n = int(n)
-        traj = integ.integrate(
-            q0, v0, h=T / n, n_steps=n, save_every=_every(n, samples), params=prm
-        )
-        energy = case.energy_from_momenta(traj.q, traj.p, traj)
-        return Sample(traj.q[-1], energy, {"newton_iterations": traj.mean_newton_iterations})
-
-    def warm():
-        return integ.integrate(q0, v0, h=case.per_step_h, n_steps=10, params=prm)
-
-    return Curve(
-        gvi_label(s, family),
-        "galerkin_vi",
-        "fixed-step",
-        2 * s,
-        sample,
-        timed,
-        warm,
-        sweep=_step_counts(case.n_start, cfg.step_factor),
+    return bm.galerkin_curve(
+        case.problem.system,
+        gvi.Galerkin(s, bm.quadrature(s, family)),
+        case.q0,
+        case.v0,
+        case.t_final,
+        params=case.problem.params,
+        n_start=case.n_start,
+        step_factor=cfg.step_factor,
+        energy_samples=cfg.energy_samples,
+        energy=energy,
+        warm_h=case.per_step_h,
     )
 
 
@@ -487,7 +433,7 @@ def _hw_curve(case: Case, kernel: str, cfg: BenchConfig) -> Curve:
 
     def sample(n):
         n = int(n)
-        res = run(T / n, n, _every(n, samples))
+        res = run(T / n, n, bm.every(n, samples))
         e = hw.energy(case.problem_id, res.q, res.p, case.hw_params)
         return Sample(res.q[-1], e, {"newton_iterations": res.mean_newton_iterations})
 
@@ -502,7 +448,7 @@ def _hw_curve(case: Case, kernel: str, cfg: BenchConfig) -> Curve:
         sample,
         timed,
         warm,
-        sweep=_step_counts(case.n_start, cfg.step_factor),
+        sweep=bm.step_counts(case.n_start, cfg.step_factor),
     )
 
 
@@ -544,7 +490,7 @@ def _ivp_curve(case: Case, method: str, cfg: BenchConfig) -> Curve:
         timed,
         warm,
         param_key="rtol",
-        sweep=_rtols(1e-3, cfg.ivp_min_rtol.get(method, 1e-10), cfg.rtol_factor),
+        sweep=bm.tolerances(1e-3, cfg.ivp_min_rtol.get(method, 1e-10), cfg.rtol_factor),
     )
 
 
@@ -580,7 +526,7 @@ def _numbalsoda_curve(case: Case, cfg: BenchConfig) -> Curve:
         lambda rtol: solve(rtol, ends),
         warm,
         param_key="rtol",
-        sweep=_rtols(1e-3, cfg.ivp_min_rtol.get("numbalsoda", 1e-15), cfg.rtol_factor),
+        sweep=bm.tolerances(1e-3, cfg.ivp_min_rtol.get("numbalsoda", 1e-15), cfg.rtol_factor),
     )
 
 
@@ -627,7 +573,7 @@ def _ias15_curve(case: Case, cfg: BenchConfig) -> Curve:
         timed,
         warm,
         param_key="epsilon",
-        sweep=_rtols(1e-2, cfg.ivp_min_rtol.get("IAS15", 1e-10), cfg.rtol_factor),
+        sweep=bm.tolerances(1e-2, cfg.ivp_min_rtol.get("IAS15", 1e-10), cfg.rtol_factor),
     )
 
 
@@ -655,7 +601,7 @@ def _whfast_curve(case: Case, cfg: BenchConfig) -> Curve:
         n = int(n)
         sim = simulation(n)
         sim.integrator.keep_unsynchronized = 1  # outputs do not perturb the run
-        every = _every(n, samples)
+        every = bm.every(n, samples)
         qs, vs = [], []
         done = 0
         while done < n:
@@ -681,7 +627,7 @@ def _whfast_curve(case: Case, cfg: BenchConfig) -> Curve:
         sample,
         timed,
         warm,
-        sweep=_step_counts(case.n_start, cfg.step_factor),
+        sweep=bm.step_counts(case.n_start, cfg.step_factor),
     )
 
 
@@ -709,158 +655,15 @@ def _curves(case: Case, cfg: BenchConfig, log: Callable[[str], None]) -> list[Cu
 
 
 # ---------------------------------------------------------------------- sweeps
-def _clock(fn: Callable[[], object]) -> float:
-    start = time.perf_counter()
-    fn()
-    return time.perf_counter() - start
-
-
-def _relative_error(case: Case, q: NDArray) -> float:
-    return float(np.linalg.norm(q - case.q_ref) / np.linalg.norm(case.q_ref))
-
-
-def _energy_error(case: Case, energy: NDArray | None) -> float | None:
-    if energy is None or energy.size == 0:
-        return None
-    return float(np.max(np.abs(energy - case.energy0)) / abs(case.energy0))
-
-
-_FLOOR = 1e-13  # relative position errors below this are round-off: finer sweeps are wasted
-# below this error, a fixed-step sweep that stops improving has reached round-off (the
-# pre-asymptotic Kepler errors are not monotone down to about 1e-8)
-_STALL_BELOW = 1e-9
-
-
 def _sweep(case: Case, curve: Curve, cfg: BenchConfig, log: Callable[[str], None]) -> None:
-    """Fill ``curve.points`` by one sweep (error run + one timed run per point)."""
-    best = math.inf
-    failures = stalled = 0
-    for param in curve.sweep:
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                smp = curve.sample(param)
-            elapsed = _clock(lambda p=param: curve.timed(p))
-        except (gvi.ConvergenceError, RuntimeError, FloatingPointError, ValueError) as exc:
-            failures += 1
-            log(f"    {curve.label}: {param:g} failed ({type(exc).__name__})")
-            if failures > 4 and not curve.points:
-                return
-            continue
-        err = _relative_error(case, smp.q_final)
-        point = {
-            curve.param_key: param,
-            "time": elapsed,
-            "error": err,
-            "energy_error": _energy_error(case, smp.energy),
-            **smp.stats,
-        }
-        if curve.kind == "fixed-step":
-            point["h"] = case.t_final / param
-        curve.points.append(point)
-        if not math.isfinite(err):
-            continue
-        if err < _FLOOR:
-            break
-        # at the round-off floor: three times no real improvement on an accurate fixed-step
-        # curve (adaptive sweeps run to their tightest rtol: their error falls slowly and
-        # unevenly with rtol)
-        if best < _STALL_BELOW and err > 0.7 * best:
-            stalled += 1
-        if curve.kind == "fixed-step" and stalled >= 3:
-            break
-        best = min(best, err)
-        if elapsed > (cfg.time_cap if curve.kind == "fixed-step" else cfg.ivp_time_cap):
-            break
+    """Fill ``curve.points`` by one sweep against the case's reference.
 
-
-def _step_counts(n_start: int, factor: float, n_max: int = 50_000_000) -> list[int]:
-    out = []
-    x = float(n_start)
-    while x <= n_max:
-        n = int(round(x))
-        if not out or n > out[-1]:
-            out.append(n)
-        x *= factor
-    return out
-
-
-def _rtols(start: float, min_rtol: float, factor: float) -> list[float]:
-    """Tolerances from ``start`` down by ``factor``, ending at ``min_rtol`` itself."""
-    out = []
-    x = start
-    while x >= min_rtol * 0.999:
-        out.append(float(f"{x:.3g}"))
-        x /= factor
-    if not out or out[-1] > min_rtol * 1.001:
-        out.append(min_rtol)
-    return out
-
-
-def _retime(curves: Sequence[Curve], repeats: int) -> None:
-    """Re-time every point in ``repeats - 1`` further interleaved rounds; keep the minimum."""
-    jobs = [(c, p) for c in curves for p in c.points]
-    for rnd in range(repeats - 1):
-        for curve, point in jobs if rnd % 2 else reversed(jobs):
-            param = point[curve.param_key]
-            try:
-                elapsed = _clock(lambda c=curve, p=param: c.timed(p))
-            except (gvi.ConvergenceError, RuntimeError, ValueError):
-                continue
-            point["time"] = min(point["time"], elapsed)
+    See :func:`galerkin_vi.benchmark.sweep`.
+    """
+    bm.sweep(curve, case.q_ref, case.energy0, case.t_final, cfg.time_cap, cfg.ivp_time_cap, log)
 
 
 # ----------------------------------------------------------------- time to error
-def time_to_error(points: Sequence[dict], target: float) -> dict | None:
-    """Time at which a curve first reaches ``target`` final error.
-
-    Points are ordered by time; between the last point above the target and the
-    first at or below it, log(time) is interpolated linearly in log(error).
-    Returns ``{"time": t, "bound": False}``, or ``bound: True`` when already the
-    cheapest point is below the target (its time is then an upper bound), or
-    None when the curve never reaches the target.
-    """
-    pts = sorted(
-        (p for p in points if math.isfinite(p["error"]) and p["error"] > 0), key=lambda p: p["time"]
-    )
-    previous = None
-    for p in pts:
-        if p["error"] <= target:
-            if previous is None:
-                return {"time": p["time"], "bound": True}
-            lt0, lt1 = math.log(previous["time"]), math.log(p["time"])
-            le0, le1 = math.log(previous["error"]), math.log(p["error"])
-            frac = (math.log(target) - le0) / (le1 - le0)
-            return {"time": math.exp(lt0 + frac * (lt1 - lt0)), "bound": False}
-        previous = p
-    return None
-
-
-def _summarise(curves: Sequence[Curve], targets: Sequence[float]) -> dict:
-    tte = {c.label: {f"{t:g}": time_to_error(c.points, t) for t in targets} for c in curves}
-    best: dict[str, dict | None] = {}
-    ratios: dict[str, dict[str, float | None]] = {}
-    for t in targets:
-        key = f"{t:g}"
-        gvi_times = [
-            (tte[c.label][key]["time"], c.label)
-            for c in curves
-            if c.family == "galerkin_vi" and tte[c.label][key] is not None
-        ]
-        if not gvi_times:
-            best[key] = None
-            ratios[key] = {c.label: None for c in curves if c.family != "galerkin_vi"}
-            continue
-        t_best, label = min(gvi_times)
-        best[key] = {"config": label, "time": t_best, "bound": tte[label][key]["bound"]}
-        ratios[key] = {
-            c.label: (tte[c.label][key]["time"] / t_best if tte[c.label][key] else None)
-            for c in curves
-            if c.family != "galerkin_vi"
-        }
-    return {"time_to_error": tte, "best_galerkin_vi": best, "ratio_peer_over_best": ratios}
-
-
 def best_peer_ratios(entry: dict, target: str) -> dict[str, tuple[str, float] | None]:
     """Per peer family, the fastest curve of that family at ``target``: (label, ratio to gvi).
 
@@ -894,7 +697,7 @@ def _per_step_row(case: Case, key: str, cfg: BenchConfig) -> dict:
     (s, family), kernel = PER_STEP_PAIRS[key]
     h = case.per_step_h
     prm = case.problem.params
-    integ = gvi.Integrator(case.problem.system, gvi.Galerkin(s, _quadrature(s, family)))
+    integ = gvi.Integrator(case.problem.system, gvi.Galerkin(s, bm.quadrature(s, family)))
     run_hw, _ = _hw_runner(case, kernel)
     variants = {}
     if kernel.startswith("gauss"):
@@ -910,19 +713,19 @@ def _per_step_row(case: Case, key: str, cfg: BenchConfig) -> dict:
     for run in variants.values():
         run(h, 10, 10)
     probe = 2000
-    t_probe = _clock(lambda: gvi_run(probe, probe))
+    t_probe = bm.clock(lambda: gvi_run(probe, probe))
     n = int(min(2_000_000, max(1000, probe * cfg.per_step_time / max(t_probe, 1e-9))))
     t_gvi = t_hw = math.inf
     t_var = dict.fromkeys(variants, math.inf)
     for _ in range(cfg.per_step_repeats):
-        t_gvi = min(t_gvi, _clock(lambda: gvi_run(n, n)))
-        t_hw = min(t_hw, _clock(lambda: run_hw(h, n, n)))
+        t_gvi = min(t_gvi, bm.clock(lambda: gvi_run(n, n)))
+        t_hw = min(t_hw, bm.clock(lambda: run_hw(h, n, n)))
         for name, run in variants.items():
             try:
-                t_var[name] = min(t_var[name], _clock(lambda r=run: r(h, n, n)))
+                t_var[name] = min(t_var[name], bm.clock(lambda r=run: r(h, n, n)))
             except RuntimeError:
                 pass
-    overhead = min(_clock(lambda: gvi_run(1, 1)) for _ in range(5))
+    overhead = min(bm.clock(lambda: gvi_run(1, 1)) for _ in range(5))
 
     def ns(t):
         return 1e9 * t / n if math.isfinite(t) else None
@@ -1019,7 +822,7 @@ def chain_cost(
         best = dict.fromkeys(jobs, math.inf)
         for _ in range(repeats):
             for key, job in jobs.items():
-                best[key] = min(best[key], _clock(job))
+                best[key] = min(best[key], bm.clock(job))
         # the fixed cost of an integrate call grows with N (23 ms at N = 1000: Legendre
         # transform, allocations): it is reported apart, not spread over the steps
         t_gvi = (best["gvi"] - best["gvi_call"]) * n / (n - 1)
@@ -1137,7 +940,7 @@ def run_benchmark(cfg: BenchConfig, quick: bool, log: Callable[[str], None] = pr
         warm = {}
         for c in curves:
             try:
-                warm[c.label] = _clock(c.warm)
+                warm[c.label] = bm.clock(c.warm)
             except Exception as exc:  # a peer that cannot run here is dropped, with a note
                 log(f"  {c.label}: warm-up failed ({type(exc).__name__}: {exc}); skipped")
                 warm[c.label] = None
@@ -1153,7 +956,7 @@ def run_benchmark(cfg: BenchConfig, quick: bool, log: Callable[[str], None] = pr
                     f"{last['time']:.3g} s, error {last['error']:.2e}"
                 )
         curves = [c for c in curves if c.points]
-        _retime(curves, pcfg.repeats)
+        bm.retime(curves, pcfg.repeats)
         entry = {
             "title": case.title,
             "setting": case.setting,
@@ -1175,7 +978,7 @@ def run_benchmark(cfg: BenchConfig, quick: bool, log: Callable[[str], None] = pr
                 for c in curves
             },
         }
-        entry.update(_summarise(curves, pcfg.targets))
+        entry.update(bm.summarise(curves, pcfg.targets))
         results["problems"][name] = entry
         log(
             f"  {name} done in {entry['seconds']:.1f} s ({time.perf_counter() - start:.1f} s total)"
@@ -1194,293 +997,3 @@ def run_benchmark(cfg: BenchConfig, quick: bool, log: Callable[[str], None] = pr
     results["meta"]["load_average_end"] = _load()
     results["meta"]["elapsed_seconds"] = time.perf_counter() - start
     return results
-
-
-# --------------------------------------------------------------------- output
-def _fmt_time(entry: dict | None) -> str:
-    if entry is None:
-        return "—"
-    return ("≤ " if entry["bound"] else "") + f"{entry['time']:.3g}"
-
-
-def _fmt_ratio(x: float | None) -> str:
-    return "—" if x is None else f"{x:.3g}"
-
-
-_SUMMARY_PEERS = ("DOP853", "numbalsoda", "hand-written", "IAS15", "WHFast")
-
-
-def _summary_lines(results: dict) -> list[str]:
-    """One table over all problems: the best galerkin_vi time and each peer family's ratio."""
-    if not results["problems"]:
-        return []
-    lines = [
-        "## Summary: best galerkin_vi configuration against the peers",
-        "",
-        "Peer time / best galerkin_vi time at the same final error (> 1: galerkin_vi is "
-        "faster). For the hand-written kernels the fastest of them is named. Empty: the "
-        "peer does not apply to the problem or is not installed; —: the peer or galerkin_vi "
-        "did not reach the target within its sweep.",
-        "",
-        "| problem | target | best galerkin_vi (s) | scipy DOP853 | numbalsoda DOP853 | "
-        "best hand-written | REBOUND IAS15 | REBOUND WHFast |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
-    for name, entry in results["problems"].items():
-        for target, best in entry["best_galerkin_vi"].items():
-            peers = best_peer_ratios(entry, target)
-            cells = []
-            for key in _SUMMARY_PEERS:
-                if key not in peers:
-                    cells.append("")
-                elif peers[key] is None:
-                    cells.append("—")
-                elif key == "hand-written":
-                    label, ratio = peers[key]
-                    cells.append(f"{ratio:.3g} ({label.removeprefix('hand-written ')})")
-                else:
-                    cells.append(f"{peers[key][1]:.3g}")
-            gvi_cell = (
-                "—"
-                if best is None
-                else f"{best['config'].removeprefix('galerkin_vi ')}: {_fmt_time(best)}"
-            )
-            lines.append(
-                f"| {entry.get('title', name)} | {target} | {gvi_cell} | "
-                + " | ".join(cells)
-                + " |"
-            )
-    lines.append("")
-    return lines
-
-
-def _chain_cost_lines(rows: Sequence[dict]) -> list[str]:
-    """The cost-per-step table of the spring chain against N."""
-    if not rows:
-        return []
-    lines = [
-        "## Spring chain: cost per step against N",
-        "",
-        f"galerkin_vi s = 2 Gauss(2) on the FPU-beta chain (beta = {CHAIN_BETA:g}, velocity "
-        f"pulse) at h = {rows[0]['h']:g}, {rows[0]['n_steps']} steps for every N, against the "
-        "hand-written 2-stage Gauss (fixed-point iteration, cost linear in N) and "
-        "Störmer–Verlet. galerkin_vi's ns/step leave out the fixed cost of its `integrate` "
-        "call (column call: a 1-step call). Growth: ns/step over that of the previous N.",
-        "",
-        "| N | galerkin_vi ns/step | growth | Newton its | banded | call (ms) | hw 2-stage Gauss "
-        "(fixed point) ns/step | growth | its | hw Verlet ns/step | galerkin_vi / hw Gauss |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        growth = r.get("growth_from_previous")
-        hw_growth = r.get("hw_gauss2_growth_from_previous")
-        lines.append(
-            f"| {r['n_masses']} | {r['gvi_ns_per_step']:.0f} | "
-            f"{'' if growth is None else f'{growth:.2f}×'} | {r['gvi_newton_iterations']:.2f} | "
-            f"{r['gvi_banded']} | {r.get('gvi_call_ms', float('nan')):.2f} | "
-            f"{r['hw_gauss2_fixed_point_ns_per_step']:.0f} | "
-            f"{'' if hw_growth is None else f'{hw_growth:.2f}×'} | "
-            f"{r['hw_gauss2_fixed_point_iterations']:.2f} | {r['hw_verlet_ns_per_step']:.0f} | "
-            f"{r['gvi_ns_per_step'] / r['hw_gauss2_fixed_point_ns_per_step']:.2f} |"
-        )
-    growth = chain_growth(rows)
-    if growth is not None:
-        lines += ["", f"Growth N = 100 → 1000: **{growth:.1f}×** (issue 3 target: ≤ 15×)."]
-    lines.append("")
-    return lines
-
-
-def markdown(results: dict) -> str:
-    """The results as Markdown tables."""
-    meta = results["meta"]
-    m = meta["machine"]
-    lines = [
-        "# galerkin_vi benchmark" + (" (quick)" if meta["quick"] else ""),
-        "",
-        f"{meta['date']}; {m['cpu']} ({m['cpus']} cores, shared); Python {m['python']}, "
-        f"numpy {m['numpy']}, scipy {m['scipy']}, numba {m['numba']}; "
-        f"load average {meta['load_average_start']} → {meta.get('load_average_end')}; "
-        f"total {meta.get('elapsed_seconds', 0):.0f} s.",
-        "",
-        f"Times: {meta['timer']}. Error: {meta['error']}. Energy error: {meta['energy_error']}.",
-        "",
-    ]
-    lines += _summary_lines(results)
-    if results["per_step"]:
-        lines += [
-            "## Per step: galerkin_vi / hand-written kernel of the same method",
-            "",
-            "Same h, same Newton tolerance (1e-14, then until the increment stops decreasing), "
-            "same initial guess (previous step's polynomial extrapolated); "
-            "`save_every = n_steps`.",
-            "",
-            "| problem | method | h | steps | galerkin_vi ns/step | hand-written ns/step | "
-            "ratio | Newton its gvi / hw | hw simplified Newton ns/step | "
-            "hw fixed point ns/step |",
-            "|---|---|---|---|---|---|---|---|---|---|",
-        ]
-        for r in results["per_step"]:
-            simp = r["hw_simplified_ns_per_step"]
-            fixed = r.get("hw_fixed_point_ns_per_step")
-            lines.append(
-                f"| {r['problem']} | {r['pair']} | {r['h']:.4g} | {r['n_steps']} | "
-                f"{r['gvi_ns_per_step']:.1f} | {r['hw_ns_per_step']:.1f} | "
-                f"**{r['ratio']:.2f}** | {r['gvi_newton_iterations']:.2f} / "
-                f"{r['hw_newton_iterations']:.2f} | {'—' if simp is None else f'{simp:.1f}'} | "
-                f"{'—' if fixed is None else f'{fixed:.1f}'} |"
-            )
-        overheads = [r["gvi_call_overhead_us"] for r in results["per_step"]]
-        lines += [
-            "",
-            f"galerkin_vi's fixed cost per `integrate` call (1 step): "
-            f"{min(overheads):.0f}–{max(overheads):.0f} µs.",
-            "",
-        ]
-    lines += _chain_cost_lines(results.get("chain_cost", []))
-    for name, entry in results["problems"].items():
-        targets = list(next(iter(entry["time_to_error"].values())).keys())
-        setting = entry.get("setting") or f"T = {entry['t_final']:.6g}"
-        lines += [
-            f"## {entry.get('title', name)}: time to reach a final relative error (seconds)",
-            "",
-            f"{setting}; reference: {entry['reference']}.",
-        ]
-        if entry["reference_checks"]:
-            checks = ", ".join(f"{k} = {v:.1e}" for k, v in entry["reference_checks"].items())
-            lines.append(f"Reference cross-checks: {checks}.")
-        lines += [
-            "",
-            "| curve | " + " | ".join(targets) + " |",
-            "|---|" + "---|" * len(targets),
-        ]
-        for label, tte in entry["time_to_error"].items():
-            lines.append(f"| {label} | " + " | ".join(_fmt_time(tte[t]) for t in targets) + " |")
-        lines += [
-            "",
-            "Best galerkin_vi configuration and peer time / best galerkin_vi time "
-            "(> 1: galerkin_vi is faster; — : the peer or galerkin_vi did not reach the target "
-            "within its sweep):",
-            "",
-            "| | " + " | ".join(targets) + " |",
-            "|---|" + "---|" * len(targets),
-        ]
-        best = entry["best_galerkin_vi"]
-        lines.append(
-            "| best galerkin_vi | "
-            + " | ".join(
-                "—" if best[t] is None else f"{best[t]['config']}: {_fmt_time(best[t])} s"
-                for t in targets
-            )
-            + " |"
-        )
-        peers = list(next(iter(entry["ratio_peer_over_best"].values())).keys())
-        for peer in peers:
-            lines.append(
-                f"| {peer} | "
-                + " | ".join(_fmt_ratio(entry["ratio_peer_over_best"][t][peer]) for t in targets)
-                + " |"
-            )
-        lines.append("")
-    lines += ["## All points", ""]
-    for name, entry in results["problems"].items():
-        lines += [
-            f"### {name}",
-            "",
-            "| curve | h or rtol | time (s) | error | energy error | Newton its / nfev |",
-            "|---|---|---|---|---|---|",
-        ]
-        for label, curve in entry["curves"].items():
-            for p in curve["points"]:
-                key = curve.get("param", "n_steps" if "h" in p else "rtol")
-                x = f"h={p['h']:.3g}" if "h" in p else f"{key}={p[key]:.0e}"
-                ee = "—" if p["energy_error"] is None else f"{p['energy_error']:.1e}"
-                st = (
-                    f"{p['newton_iterations']:.2f}"
-                    if "newton_iterations" in p
-                    else f"{p.get('nfev', '')}"
-                )
-                lines.append(
-                    f"| {label} | {x} | {p['time']:.3g} | {p['error']:.2e} | {ee} | {st} |"
-                )
-        lines.append("")
-    return "\n".join(lines)
-
-
-def _plots(results: dict, folder: str) -> list[str] | None:
-    """PNG plots per problem; None when matplotlib cannot be imported."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        return None
-    styles = {
-        "galerkin_vi": "-",
-        "hand-written": "--",
-        "scipy": ":",
-        "numbalsoda": ":",
-        "REBOUND": "-.",
-    }
-    written = []
-    for name, entry in results["problems"].items():
-        for kind, ykey, ylabel in (
-            ("precision", "error", "final relative position error"),
-            ("energy", "energy_error", "max relative energy error"),
-        ):
-            fig, ax = plt.subplots(figsize=(9, 6.5))
-            ax.set_prop_cycle(color=plt.get_cmap("tab20").colors)
-            for label, curve in entry["curves"].items():
-                pts = [p for p in curve["points"] if p.get(ykey) is not None]
-                if not pts:
-                    continue
-                ax.loglog(
-                    [p["time"] for p in pts],
-                    [p[ykey] for p in pts],
-                    styles.get(curve["family"], "-"),
-                    marker="o",
-                    markersize=3,
-                    label=label,
-                )
-            ax.set_xlabel("wall seconds (minimum of repeats)")
-            ax.set_ylabel(ylabel)
-            ax.set_title(f"{entry.get('title', name)}: {ylabel} against time")
-            ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=7)
-            path = os.path.join(folder, f"{name}_{kind}.png")
-            fig.savefig(path, dpi=110, bbox_inches="tight")
-            plt.close(fig)
-            written.append(path)
-    return written
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
-
-
-def write_outputs(results: dict, folder: str, log: Callable[[str], None] = print) -> list[str]:
-    """Write results.json, results.md and (if matplotlib is importable) PNG plots."""
-    os.makedirs(folder, exist_ok=True)
-    written = []
-    path = os.path.join(folder, "results.json")
-    with open(path, "w") as fh:
-        json.dump(_jsonable(results), fh, indent=1)
-    written.append(path)
-    path = os.path.join(folder, "results.md")
-    with open(path, "w") as fh:
-        fh.write(markdown(results) + "\n")
-    written.append(path)
-    pngs = _plots(results, folder)
-    if pngs is None:
-        log("matplotlib is not installed: PNG plots skipped (pip install matplotlib to get them)")
-    else:
-        written += pngs
-    return written
