@@ -491,7 +491,9 @@ def _predict(
     return h, n_steps, model(h), slope
 
 
-def _timed(pilot: _Pilot, rows: list[Candidate], timing_steps: int, repeats: int):
+def _timed(
+    pilot: _Pilot, rows: list[Candidate], timing_steps: int, repeats: int
+) -> list[Candidate]:
     """``rows`` with the measured time per step and the predicted cost filled in.
 
     Each candidate runs ``min(n_steps, timing_steps)`` steps at its own ``h``
@@ -527,6 +529,173 @@ def _timed(pilot: _Pilot, rows: list[Candidate], timing_steps: int, repeats: int
             c = replace(c, time_per_step=per_step, predicted_cost=cost)
         out.append(c)
     return out
+
+
+def _check_counts(max_pilot_steps: object, timing_steps: object, repeats: object) -> None:
+    """Raise ``ValueError`` unless the pilot and timing counts are large enough ints."""
+    for name, value, least in (
+        ("max_pilot_steps", max_pilot_steps, 4 * SAMPLES),
+        ("timing_steps", timing_steps, 2),
+        ("repeats", repeats, 1),
+    ):
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
+            raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
+
+
+def _check_arguments(
+    system: object,
+    q0: ArrayLike,
+    v0: ArrayLike | None,
+    p0: ArrayLike | None,
+    *,
+    t_final: object,
+    tol: object,
+    safety: object,
+    pilot_span: object,
+    reference: object,
+    max_pilot_steps: object,
+    timing_steps: object,
+    repeats: object,
+    t0: object,
+) -> tuple[float, float, float, float, NDArray[np.float64], float]:
+    """Validate the arguments of :func:`choose_method`.
+
+    Returns ``(t_final, tol, safety, span, q0, t0)`` as floats and a float array.
+    """
+    if not isinstance(system, LagrangianSystem):
+        raise TypeError(f"system must be a LagrangianSystem, got {type(system).__name__}")
+    t_final = _positive("t_final", t_final)
+    tol = _positive("tol", tol)
+    safety = _positive("safety", safety)
+    if safety < 1:
+        raise ValueError(f"safety must be >= 1, got {safety}")
+    span = t_final / 10 if pilot_span is None else _positive("pilot_span", pilot_span)
+    if span > t_final:
+        raise ValueError(f"pilot_span must be <= t_final = {t_final}, got {span}")
+    _check_counts(max_pilot_steps, timing_steps, repeats)
+    if reference is not None and not callable(reference):
+        raise TypeError("reference must be a callable t -> q(t)")
+    if (v0 is None) == (p0 is None):
+        raise ValueError("give exactly one of v0 (velocities) and p0 (momenta)")
+    q0 = np.asarray(q0, dtype=float)
+    if q0.shape != (system.n,):
+        raise ValueError(f"q0 must have shape ({system.n},), got {q0.shape}")
+    return t_final, tol, safety, span, q0, float(t0)
+
+
+def _reference_samples(
+    pilot: _Pilot, reference: Callable | None, candidates: Sequence[Galerkin]
+) -> tuple[NDArray[np.float64], float]:
+    """Reference positions at the pilot sample times and their estimated error."""
+    times = pilot.t0 + pilot.span * np.arange(1, SAMPLES + 1) / SAMPLES
+    if reference is not None:
+        return _given_reference(reference, times, pilot.system.n), 0.0
+    # at least as accurate as the most accurate candidate
+    degree = max(REFERENCE_MIN_DEGREE, *(m.degree for m in candidates))
+    return _richardson_reference(pilot, degree)
+
+
+def _absolute_tolerance(
+    ref: NDArray[np.float64], q0: NDArray[np.float64], tol: float, relative: bool
+) -> tuple[float, float]:
+    """The solution's scale (1 if it is zero) and the absolute tolerance ``tol`` means."""
+    size = float(max(np.max(np.abs(ref)), np.max(np.abs(q0))))
+    scale = size if size > 0 else 1.0
+    atol = tol * size if relative else tol
+    if atol <= 0:
+        raise ValueError("relative=True needs a solution that is not identically zero")
+    return scale, atol
+
+
+def _dropped(method: Galerkin, status: str) -> Candidate:
+    """The row of a candidate without usable pilots, dropped for ``status``."""
+    return Candidate(
+        method=method,
+        label=_label(method),
+        order=method.order,
+        pilot_steps=(),
+        pilot_errors=(),
+        measured_order=math.nan,
+        h=math.nan,
+        n_steps=0,
+        predicted_error=math.nan,
+        time_per_step=math.nan,
+        predicted_cost=math.inf,
+        status=status,
+    )
+
+
+def _predicted(
+    method: Galerkin,
+    points: list[tuple[int, float]],
+    span: float,
+    t_final: float,
+    target: float,
+) -> Candidate:
+    """The row of a candidate with its step size predicted from the pilot ``points``."""
+    h, n_steps, predicted, slope = _predict(points, method.order, span, t_final, target)
+    return Candidate(
+        method=method,
+        label=_label(method),
+        order=method.order,
+        pilot_steps=tuple(n for n, _ in points),
+        pilot_errors=tuple(e for _, e in points),
+        measured_order=slope,
+        h=h,
+        n_steps=n_steps,
+        predicted_error=predicted,
+        time_per_step=math.nan,
+        predicted_cost=math.inf,
+    )
+
+
+def _candidate_rows(
+    pilot: _Pilot,
+    methods: Sequence[Galerkin],
+    ref: NDArray[np.float64],
+    reference_error: float,
+    scale: float,
+    target: float,
+    t_final: float,
+    max_pilot_steps: int,
+) -> list[Candidate]:
+    """Pilot runs and prediction of every method, in order; not yet timed."""
+    # the whole-span target scaled down by the linear error growth of the model
+    pilot_target = target * pilot.span / t_final
+    rows: list[Candidate] = []
+    for method in methods:
+        points, status = _probe(
+            pilot, method, ref, reference_error, scale, pilot_target, max_pilot_steps
+        )
+        if status != "ok":
+            rows.append(_dropped(method, status))
+        else:
+            rows.append(_predicted(method, points, pilot.span, t_final, target))
+    return rows
+
+
+def _cheapest(rows: Sequence[Candidate]) -> Candidate:
+    """The usable candidate of least predicted cost; ``RuntimeError`` if there is none."""
+    usable = [c for c in rows if c.ok]
+    if not usable:
+        raise RuntimeError(
+            "no candidate method gave usable pilot runs:\n"
+            + "\n".join(f"  {c.label}: {c.status}" for c in rows)
+        )
+    return min(usable, key=lambda c: c.predicted_cost)
+
+
+def _warn_near_roundoff(best: Candidate, target: float, scale: float) -> None:
+    """Warn if ``target`` is below the round-off estimate of the ``best`` run."""
+    roundoff = best.n_steps * _EPS * scale  # one rounding per step, accumulated
+    if target < roundoff:
+        warnings.warn(
+            f"the aimed-at error {target:.2e} (tol / safety) is near the float64 round-off "
+            f"floor of a {best.n_steps}-step run (about {roundoff:.1e}): the tolerance may "
+            "not be reachable",
+            RuntimeWarning,
+            stacklevel=3,  # the caller of choose_method, not choose_method
+        )
 
 
 def choose_method(
@@ -625,105 +794,34 @@ def choose_method(
     >>> print(choice)  # doctest: +SKIP
     """
     start = time.perf_counter()
-    if not isinstance(system, LagrangianSystem):
-        raise TypeError(f"system must be a LagrangianSystem, got {type(system).__name__}")
-    t_final = _positive("t_final", t_final)
-    tol = _positive("tol", tol)
-    safety = _positive("safety", safety)
-    if safety < 1:
-        raise ValueError(f"safety must be >= 1, got {safety}")
-    span = t_final / 10 if pilot_span is None else _positive("pilot_span", pilot_span)
-    if span > t_final:
-        raise ValueError(f"pilot_span must be <= t_final = {t_final}, got {span}")
-    for name, value, least in (
-        ("max_pilot_steps", max_pilot_steps, 4 * SAMPLES),
-        ("timing_steps", timing_steps, 2),
-        ("repeats", repeats, 1),
-    ):
-        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
-            raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
-    if reference is not None and not callable(reference):
-        raise TypeError("reference must be a callable t -> q(t)")
-    if (v0 is None) == (p0 is None):
-        raise ValueError("give exactly one of v0 (velocities) and p0 (momenta)")
-    q0 = np.asarray(q0, dtype=float)
-    if q0.shape != (system.n,):
-        raise ValueError(f"q0 must have shape ({system.n},), got {q0.shape}")
-    t0 = float(t0)
+    t_final, tol, safety, span, q0, t0 = _check_arguments(
+        system,
+        q0,
+        v0,
+        p0,
+        t_final=t_final,
+        tol=tol,
+        safety=safety,
+        pilot_span=pilot_span,
+        reference=reference,
+        max_pilot_steps=max_pilot_steps,
+        timing_steps=timing_steps,
+        repeats=repeats,
+        t0=t0,
+    )
     candidates = _candidate_methods(degrees, families, methods)
 
     pilot = _Pilot(system, q0, v0, p0, t0, params, span, backend)
-    times = t0 + span * np.arange(1, SAMPLES + 1) / SAMPLES
-    if reference is not None:
-        ref = _given_reference(reference, times, system.n)
-        reference_error = 0.0
-    else:
-        degree = max(REFERENCE_MIN_DEGREE, *(m.degree for m in candidates))
-        ref, reference_error = _richardson_reference(pilot, degree)
-    size = float(max(np.max(np.abs(ref)), np.max(np.abs(q0))))
-    scale = size if size > 0 else 1.0
-    atol = tol * size if relative else tol
-    if atol <= 0:
-        raise ValueError("relative=True needs a solution that is not identically zero")
+    ref, reference_error = _reference_samples(pilot, reference, candidates)
+    scale, atol = _absolute_tolerance(ref, q0, tol, relative)
     target = atol / safety
-    pilot_target = target * span / t_final
 
-    rows: list[Candidate] = []
-    for method in candidates:
-        points, status = _probe(
-            pilot, method, ref, reference_error, scale, pilot_target, int(max_pilot_steps)
-        )
-        if status != "ok":
-            rows.append(
-                Candidate(
-                    method=method,
-                    label=_label(method),
-                    order=method.order,
-                    pilot_steps=(),
-                    pilot_errors=(),
-                    measured_order=math.nan,
-                    h=math.nan,
-                    n_steps=0,
-                    predicted_error=math.nan,
-                    time_per_step=math.nan,
-                    predicted_cost=math.inf,
-                    status=status,
-                )
-            )
-            continue
-        h, n_steps, predicted, slope = _predict(points, method.order, span, t_final, target)
-        rows.append(
-            Candidate(
-                method=method,
-                label=_label(method),
-                order=method.order,
-                pilot_steps=tuple(n for n, _ in points),
-                pilot_errors=tuple(e for _, e in points),
-                measured_order=slope,
-                h=h,
-                n_steps=n_steps,
-                predicted_error=predicted,
-                time_per_step=math.nan,
-                predicted_cost=math.inf,
-            )
-        )
+    rows = _candidate_rows(
+        pilot, candidates, ref, reference_error, scale, target, t_final, int(max_pilot_steps)
+    )
     rows = _timed(pilot, rows, int(timing_steps), int(repeats))
-    usable = [c for c in rows if c.ok]
-    if not usable:
-        raise RuntimeError(
-            "no candidate method gave usable pilot runs:\n"
-            + "\n".join(f"  {c.label}: {c.status}" for c in rows)
-        )
-    best = min(usable, key=lambda c: c.predicted_cost)
-    roundoff = best.n_steps * _EPS * scale  # one rounding per step, accumulated
-    if target < roundoff:
-        warnings.warn(
-            f"the aimed-at error {target:.2e} (tol / safety) is near the float64 round-off "
-            f"floor of a {best.n_steps}-step run (about {roundoff:.1e}): the tolerance may "
-            "not be reachable",
-            RuntimeWarning,
-            stacklevel=2,
-        )
+    best = _cheapest(rows)
+    _warn_near_roundoff(best, target, scale)
     return MethodChoice(
         method=best.method,
         h=best.h,

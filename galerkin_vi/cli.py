@@ -275,6 +275,12 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="delete the whole cache (loops and every system's point functions) first",
     )
+    warmup.add_argument(
+        "--jobs",
+        type=int,
+        default=None,
+        help="processes to compile in (default: the number of cores, at most 2)",
+    )
     warmup.set_defaults(run=_warmup)
     return parser
 
@@ -283,16 +289,16 @@ def _warmup(args: argparse.Namespace) -> int:
     import shutil
 
     from .cache import cache_root
-    from .loops import loop_cache_dir
-    from .warmup import warm_up
 
     if args.clear:
         shutil.rmtree(cache_root(), ignore_errors=True)
         print(f"cleared {cache_root()}")
+    from .loops import loop_cache_dir
+    from .loops.readiness import compile_all
+
     print(f"compiling the time loops into {loop_cache_dir()}")
-    start = time.perf_counter()
-    warm_up(verbose=True)
-    print(f"done in {time.perf_counter() - start:.1f} s")
+    seconds = compile_all(jobs=args.jobs, verbose=True)
+    print(f"done in {seconds:.1f} s")
     return 0
 
 

@@ -1,4 +1,4 @@
-r"""Holonomic constraints :math:`g(t, q) = 0`: symbolic pieces and consistent initial data.
+r"""Holonomic constraints :math:`g(t, q) = 0`: consistent initial data and projections.
 
 With :math:`m` constraints :math:`g : \mathbb R \times \mathbb R^n \to \mathbb R^m`
 and :math:`\mathcal G = \partial g/\partial q` (shape :math:`m \times n`), the
@@ -31,15 +31,11 @@ projects them there.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
 import numpy as np
-import sympy as sp
 from numpy.typing import NDArray
 
-if TYPE_CHECKING:
-    from .system import LagrangianSystem
+from .symbolic import ConstraintPieces, constraint_pieces
+from .system import LagrangianSystem
 
 __all__ = [
     "INITIAL_TOLERANCE",
@@ -56,54 +52,6 @@ INITIAL_TOLERANCE = 1e-10
 # still counts as full rank (below it the constraints are redundant at that point)
 _RANK_TOLERANCE = 1e-10
 _PROJECTION_MAXITER = 50
-
-
-@dataclass(frozen=True)
-class ConstraintPieces:
-    r"""SymPy expressions of the constraints and their derivatives.
-
-    Attributes
-    ----------
-    g : sympy.Matrix, shape (m, 1)
-    jacobian : sympy.Matrix, shape (m, n)
-        :math:`\mathcal G_{ja} = \partial g_j/\partial q_a`.
-    rate : sympy.Matrix, shape (m, 1)
-        :math:`\partial g_j/\partial t` (zero for scleronomic constraints).
-    hessians : tuple of sympy.Matrix, shape (n, n) each
-        :math:`\partial^2 g_j/\partial q^2`.
-    """
-
-    g: sp.Matrix
-    jacobian: sp.Matrix
-    rate: sp.Matrix
-    hessians: tuple[sp.Matrix, ...]
-
-    @property
-    def m(self) -> int:
-        """Number of constraints."""
-        return self.g.rows
-
-    def contracted_hessian(self, lam: list[sp.Symbol]) -> sp.Matrix:
-        r""":math:`\sum_j \lambda_j \nabla^2 g_j` in the multiplier symbols ``lam``."""
-        n = self.jacobian.cols
-        total = sp.zeros(n, n)
-        for lj, hj in zip(lam, self.hessians, strict=True):
-            total += lj * hj
-        return total
-
-
-def constraint_pieces(
-    constraints: tuple[sp.Expr, ...], q: tuple[sp.Symbol, ...], t: sp.Symbol
-) -> ConstraintPieces:
-    """Differentiate the constraints by ``q`` (once and twice) and by ``t``."""
-    g = sp.Matrix(constraints)
-    jacobian = g.jacobian(list(q))
-    return ConstraintPieces(
-        g=g,
-        jacobian=jacobian,
-        rate=g.diff(t),
-        hessians=tuple(sp.hessian(e, list(q)) for e in constraints),
-    )
 
 
 def _full_rank(jacobian: NDArray) -> bool:

@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:
-    from .trajectory import Trajectory
+from typing import Any
 
 __all__ = [
     "ConditioningWarning",
@@ -50,7 +47,7 @@ class ConvergenceError(RuntimeError):
         step: int,
         t: float,
         residual: float,
-        partial: Trajectory | None = None,
+        partial: Any = None,  # a Trajectory: errors import nothing of the package
         **extra: Any,
     ) -> None:
         super().__init__(message)

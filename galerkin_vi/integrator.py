@@ -5,7 +5,7 @@ from __future__ import annotations
 import numbers
 import warnings
 from collections.abc import Iterator, Mapping
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -163,7 +163,7 @@ class Integrator:
         :math:`O(h^2\|M^{-1}L_{qq}\|)`; when an increment is not at least
         ``min(0.01 u n, 0.2)`` times the one before, full Newton takes over
         for the rest of the step and the next 64 steps. Measured time per step,
-        constant-mass over full Newton in the same loop (``galerkin-vi bench``
+        constant-mass over full Newton in the same loop (``python benchmarks/run.py``
         per-step pairs, both settings forced): 1.10–1.25 at 1–2 unknowns
         (pendulum Lobatto(3), Kepler s = 1 Gauss and Lobatto(3); 0.88 on the
         pendulum with 2 Gauss points), 0.70–0.84 from 3 unknowns (pendulum and
@@ -201,15 +201,7 @@ class Integrator:
 
     def _loop_arguments(self):
         """The system's part of every loop's arguments: (fn, traits, pattern, periodic)."""
-        from .loops.traits import (
-            AUTONOMOUS,
-            BAND,
-            DIAGONAL_MASS,
-            HAS_FV,
-            HAS_LQV,
-            HAS_PERIODIC,
-            N_TRAITS,
-        )
+        from .loops.traits import AUTONOMOUS, BAND, HAS_FV, HAS_LQV, N_TRAITS
 
         spec = self._spec
         names = ("point_gradient",)
@@ -228,15 +220,13 @@ class Integrator:
         traits[HAS_LQV] = spec.has_Lqv
         traits[HAS_FV] = spec.has_fv
         traits[AUTONOMOUS] = spec.autonomous
-        traits[DIAGONAL_MASS] = spec.diagonal_mass
-        traits[HAS_PERIODIC] = any(spec.periodic)
+        # banded storage is a switch (loops.traits): the pattern, or None for dense storage
+        pattern = None
         if spec.banded:
             position = {pair: k for k, pair in enumerate(spec.pattern)}
             pattern = np.array(
                 [(a, b, position.get((b, a), 0)) for a, b in spec.pattern], dtype=np.int64
             )
-        else:
-            pattern = np.zeros((0, 3), dtype=np.int64)
         periodic = np.array(spec.periodic or (False,) * self.system.n, dtype=np.bool_)
         return fn, traits, pattern, periodic
 
@@ -342,149 +332,13 @@ class Integrator:
         system = self.system
         q0 = self._state("q0", q0)
         h = self._step_size(h)
-        if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 0:
-            raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
-        if (
-            isinstance(save_every, bool)
-            or not isinstance(save_every, numbers.Integral)
-            or save_every < 1
-        ):
-            raise ValueError(f"save_every must be a positive int, got {save_every!r}")
-        t0 = float(t0)
-        if not np.isfinite(t0):
-            raise ValueError(f"t0 must be finite, got {t0}")
+        n_steps, save_every, t0 = _run_lengths(n_steps, save_every, t0)
         prm = system.parameter_vector(params)
-        prm_dict = dict(zip(system.params, prm, strict=True))
-        p0_arr, v0_arr = self._initial_momentum(q0, v0, p0, t0, prm_dict)
-        if system.m:
-            q0, p0_arr, v0_arr = consistent_initial_state(
-                system, t0, q0, p0_arr, v0_arr, prm, bool(project)
-            )
-            p0_arr, v0_arr = project_momentum(system, t0, q0, p0_arr, v0_arr, prm)
-        elif project:
-            raise ValueError("project=True needs a system with constraints")
-
-        n_steps = int(n_steps)
-        n_saved = n_steps // save_every + 1 + (1 if n_steps % save_every else 0)
-        t_out = np.empty(n_saved)
-        q_out = np.empty((n_saved, system.n))
-        p_out = np.empty((n_saved, system.n))
-        # angles are saved in [-pi, pi) with the whole turns apart (see loops.common.save_row)
-        periodic = np.array(system.periodic, dtype=bool)
-        turns_out = np.zeros((n_saved if periodic.any() else 1, system.n))
-        # per saved interval, not per step: a 1e7-step run with save_every stores nothing per step
-        iterations = np.zeros(-(-n_steps // save_every), dtype=np.uint8)
-        iteration_total = np.zeros(1, dtype=np.int64)
-        tb = self.method.tables
-        args = (q0, p0_arr, v0_arr, t0, h, n_steps, int(save_every), prm)
-        outputs = (t_out, q_out, p_out, turns_out)
-        path = self.kernel_path
-        compiled = self.backend == "numba"
-        if compiled:
-            from . import loops
-            from .warmup import ensure_loops
-
-            ensure_loops()
-            model = self._loop_arguments()
-        if path == "constrained" and compiled:
-            status, done, saved, worst, increment = loops.constrained_loop(
-                *model,
-                system.m,
-                *args,
-                *(tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation),
-                self.tol,
-                self.maxiter,
-                *outputs,
-                iterations,
-                iteration_total,
-            )
-        elif path == "constrained":
-            status, done, saved, worst, increment = numpy_constrained.integrate(
-                system, tb, *args, self.tol, self.maxiter, *outputs, iterations, iteration_total
-            )
-        elif path == "explicit":
-            n = system.n
-            mass = system.evaluate("Lvv", t0, q0, np.zeros(n), prm).reshape(n, n)
-            if not is_regular(mass):
-                raise DegenerateLagrangianError(f"the mass matrix d2L/dv2 = {mass} is singular")
-            fn, traits, _, periodic = model
-            inverse = np.linalg.inv(mass)
-            # a writable copy: numba types a read-only view as another (compiled) variant
-            diagonal = np.diag(inverse).copy() if self._spec.diagonal_mass else None
-            status, done, saved = loops.explicit_loop(
-                fn, traits, periodic, q0, p0_arr, t0, h, n_steps, int(save_every), prm,
-                inverse, diagonal, *outputs,
-            )  # fmt: skip
-            worst, increment = 0.0, np.nan
-        elif path == "separable":
-            st = separable_tables(self.method)
-            status, done, saved, worst, increment = loops.stage_form_loop(
-                *model,
-                *args,
-                tb.b,
-                tb.c,
-                st.implicit,
-                st.known,
-                st.rest,
-                st.stage_p,
-                st.stage_a,
-                st.stage_force,
-                st.control_p,
-                st.control_a,
-                st.control_force,
-                st.Phi1,
-                st.extrapolation,
-                st.reuse_endpoint,
-                self.tol,
-                self.maxiter,
-                self.uses_constant_mass,
-                *outputs,
-                iterations,
-                iteration_total,
-            )
-        elif path == "linear":
-            status, done, saved = loops.linear_loop(
-                *model, *args, tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation, *outputs
-            )
-            iterations[: -(-done // save_every)] = 1
-            iteration_total[0] = done
-            worst, increment = 0.0, np.nan
-        elif compiled:
-            status, done, saved, worst, increment = loops.general_loop(
-                *model,
-                *args,
-                tb.b,
-                tb.c,
-                tb.d,
-                tb.Phi,
-                tb.D,
-                tb.extrapolation,
-                self.tol,
-                self.maxiter,
-                *outputs,
-                iterations,
-                iteration_total,
-            )
-        else:
-            status, done, saved, worst, increment = numpy_backend.integrate(
-                system, tb, *args, self.tol, self.maxiter, *outputs, iterations, iteration_total
-            )
-        q_saved, q_reduced = q_out[:saved], None
-        if periodic.any():
-            q_reduced = q_saved
-            q_saved = numpy_backend.unwrapped(q_saved, turns_out[:saved])
-        traj = Trajectory(
-            t=t_out[:saved],
-            q=q_saved,
-            q_reduced=q_reduced,
-            p=p_out[:saved],
-            newton_iterations=iterations[: -(-(done + (status != 0)) // int(save_every))],
-            total_newton_iterations=int(iteration_total[0]),
-            n_steps=int(done + (status != 0)),
-            max_residual=float(worst),
-            system=system,
-            params=prm,
-        )
+        q0, p0_arr, v0_arr = self._initial_state(q0, v0, p0, t0, prm, project)
+        out = RunOutputs.allocate(n_steps, save_every, system.n, any(system.periodic))
+        run = (q0, p0_arr, v0_arr, t0, h, n_steps, save_every, prm)
+        status, done, saved, worst, increment = self._run_loop(run, out)
+        traj = out.trajectory(status, done, saved, worst, save_every, system, prm)
         if status != 0:
             t_fail = t0 + done * h
             raise ConvergenceError(
@@ -498,6 +352,63 @@ class Integrator:
             )
         _warn_if_unstable(traj, h)
         return traj
+
+    def _initial_state(self, q0, v0, p0, t0, prm, project):
+        """(q0, p0, v0) from the user's data: Legendre transform, constraints checked."""
+        system = self.system
+        prm_dict = dict(zip(system.params, prm, strict=True))
+        p0_arr, v0_arr = self._initial_momentum(q0, v0, p0, t0, prm_dict)
+        if system.m:
+            q0, p0_arr, v0_arr = consistent_initial_state(
+                system, t0, q0, p0_arr, v0_arr, prm, bool(project)
+            )
+            p0_arr, v0_arr = project_momentum(system, t0, q0, p0_arr, v0_arr, prm)
+        elif project:
+            raise ValueError("project=True needs a system with constraints")
+        return q0, p0_arr, v0_arr
+
+    def _run_loop(self, run: tuple, out: RunOutputs) -> tuple:
+        """Run the loop of :attr:`kernel_path` (compiled, or the NumPy reference).
+
+        Returns (status, steps completed, rows saved, max residual, failing increment).
+        """
+        path, system, tb = self.kernel_path, self.system, self.method.tables
+        counters = (out.iterations, out.iteration_total)
+        if self.backend != "numba":
+            solver = numpy_constrained if path == "constrained" else numpy_backend
+            return solver.integrate(
+                system, tb, *run, self.tol, self.maxiter, *out.arrays, *counters
+            )
+        from . import loops  # numba: imported on the first compiled run
+        from .loops.readiness import ensure_loops
+
+        ensure_loops()
+        model = self._loop_arguments()
+        newton = (self.tol, self.maxiter)
+        if path == "explicit":
+            return run_explicit(system, self._spec, model, run, out.arrays)
+        if path == "separable":
+            st = separable_tables(self.method)
+            # a diagonal M is a compiled variant of its own (None: a full M)
+            diagonal = np.zeros(system.n) if self._spec.diagonal_mass else None
+            return loops.stage_form_loop(
+                *model, diagonal, *run, tb.b, tb.c, *st.loop_arguments, *newton,
+                self.uses_constant_mass, *out.arrays, *counters,
+            )  # fmt: skip
+        method = (tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation)
+        if path == "linear":
+            status, done, saved = loops.linear_loop(*model, *run, *method, *out.arrays)
+            out.iterations[: -(-done // run[6])] = 1
+            out.iteration_total[0] = done
+            return status, done, saved, 0.0, np.nan
+        if path == "constrained":
+            return loops.constrained_loop(
+                *model, system.m, *run, *method, *newton, *out.arrays, *counters
+            )
+        # a switch (loops.traits): None compiles the L_qv and f_v terms out
+        spec = self._spec
+        couplings = (spec.has_Lqv, spec.has_fv) if spec.has_Lqv or spec.has_fv else None
+        return loops.general_loop(*model, couplings, *run, *method, *newton, *out.arrays, *counters)
 
     def stream(
         self,
@@ -675,6 +586,102 @@ class Integrator:
                 residual=result.increment,
             )
         return qb + result.x[-n:]
+
+
+def _run_lengths(n_steps, save_every, t0) -> tuple[int, int, float]:
+    """Checked ``n_steps``, ``save_every`` and ``t0``."""
+    if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 0:
+        raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
+    if (
+        isinstance(save_every, bool)
+        or not isinstance(save_every, numbers.Integral)
+        or save_every < 1
+    ):
+        raise ValueError(f"save_every must be a positive int, got {save_every!r}")
+    t0 = float(t0)
+    if not np.isfinite(t0):
+        raise ValueError(f"t0 must be finite, got {t0}")
+    return int(n_steps), int(save_every), t0
+
+
+@dataclass
+class RunOutputs:
+    """The arrays a loop writes into, allocated once per run.
+
+    Angles are saved in [-pi, pi) with the whole turns apart (``turns``; see
+    :func:`galerkin_vi.loops.common.save_row`). Iteration counts are kept per
+    saved interval, not per step: a 1e7-step run with ``save_every`` stores
+    nothing per step.
+    """
+
+    t: NDArray[np.float64]
+    q: NDArray[np.float64]
+    p: NDArray[np.float64]
+    turns: NDArray[np.float64]
+    iterations: NDArray[np.uint8]
+    iteration_total: NDArray[np.int64]
+    periodic: bool
+
+    @classmethod
+    def allocate(cls, n_steps: int, save_every: int, n: int, periodic: bool) -> RunOutputs:
+        n_saved = n_steps // save_every + 1 + (1 if n_steps % save_every else 0)
+        return cls(
+            t=np.empty(n_saved),
+            q=np.empty((n_saved, n)),
+            p=np.empty((n_saved, n)),
+            turns=np.zeros((n_saved if periodic else 1, n)),
+            iterations=np.zeros(-(-n_steps // save_every), dtype=np.uint8),
+            iteration_total=np.zeros(1, dtype=np.int64),
+            periodic=periodic,
+        )
+
+    @property
+    def arrays(self) -> tuple:
+        """(t, q, p, turns), in the loops' argument order."""
+        return self.t, self.q, self.p, self.turns
+
+    def trajectory(self, status, done, saved, worst, save_every, system, prm) -> Trajectory:
+        """The saved rows as a :class:`Trajectory` (angles continued across turns)."""
+        q_saved, q_reduced = self.q[:saved], None
+        if self.periodic:
+            q_reduced = q_saved
+            q_saved = numpy_backend.unwrapped(q_saved, self.turns[:saved])
+        attempted = int(done + (status != 0))
+        return Trajectory(
+            t=self.t[:saved],
+            q=q_saved,
+            q_reduced=q_reduced,
+            p=self.p[:saved],
+            newton_iterations=self.iterations[: -(-attempted // save_every)],
+            total_newton_iterations=int(self.iteration_total[0]),
+            n_steps=attempted,
+            max_residual=float(worst),
+            system=system,
+            params=prm,
+        )
+
+
+def run_explicit(system, spec, model, run, arrays) -> tuple:
+    """Störmer–Verlet with :math:`M^{-1}` formed once (a diagonal M as its diagonal only)."""
+    q0, p0, _, t0, h, n_steps, save_every, prm = run
+    n = system.n
+    mass = system.evaluate("Lvv", t0, q0, np.zeros(n), prm).reshape(n, n)
+    if not is_regular(mass):
+        raise DegenerateLagrangianError(f"the mass matrix d2L/dv2 = {mass} is singular")
+    fn, _, _, periodic = model
+    # switches (loops.traits): a run-time test of either cost 25 % per step here
+    periodic = periodic if periodic.any() else None
+    inverse = np.linalg.inv(mass)
+    # a writable copy: numba types a read-only view as another (compiled) variant
+    diagonal = np.diag(inverse).copy() if spec.diagonal_mass else None
+    from .loops import explicit_loop
+
+    time_dependent = None if spec.autonomous else True  # a switch: see loops.traits
+    status, done, saved = explicit_loop(
+        fn, periodic, time_dependent, q0, p0, t0, h, n_steps, save_every, prm, inverse,
+        diagonal, *arrays,
+    )  # fmt: skip
+    return status, done, saved, 0.0, np.nan
 
 
 def _warn_if_unstable(traj: Trajectory, h: float) -> None:

@@ -100,6 +100,24 @@ class SeparableTables:
     extrapolation: NDArray[np.float64]
     reuse_endpoint: bool
 
+    @property
+    def loop_arguments(self) -> tuple:
+        """The tables in the order :func:`galerkin_vi.loops.stage_form_loop` takes them."""
+        return (
+            self.implicit,
+            self.known,
+            self.rest,
+            self.stage_p,
+            self.stage_a,
+            self.stage_force,
+            self.control_p,
+            self.control_a,
+            self.control_force,
+            self.Phi1,
+            self.extrapolation,
+            self.reuse_endpoint,
+        )
+
 
 def has_stage_form(system) -> bool:
     r"""Whether ``system`` gets the compiled stage-form loop.

@@ -28,6 +28,8 @@ from dataclasses import dataclass, replace
 import sympy as sp
 
 __all__ = [
+    "ConstraintPieces",
+    "constraint_pieces",
     "PointwisePieces",
     "Structure",
     "analyse_structure",
@@ -370,3 +372,51 @@ def _outside_trig(expr: sp.Expr, symbols: set[sp.Symbol]) -> set[sp.Symbol]:
     for arg in expr.args:
         bad |= _outside_trig(arg, symbols)
     return bad
+
+
+@dataclass(frozen=True)
+class ConstraintPieces:
+    r"""SymPy expressions of the constraints and their derivatives.
+
+    Attributes
+    ----------
+    g : sympy.Matrix, shape (m, 1)
+    jacobian : sympy.Matrix, shape (m, n)
+        :math:`\mathcal G_{ja} = \partial g_j/\partial q_a`.
+    rate : sympy.Matrix, shape (m, 1)
+        :math:`\partial g_j/\partial t` (zero for scleronomic constraints).
+    hessians : tuple of sympy.Matrix, shape (n, n) each
+        :math:`\partial^2 g_j/\partial q^2`.
+    """
+
+    g: sp.Matrix
+    jacobian: sp.Matrix
+    rate: sp.Matrix
+    hessians: tuple[sp.Matrix, ...]
+
+    @property
+    def m(self) -> int:
+        """Number of constraints."""
+        return self.g.rows
+
+    def contracted_hessian(self, lam: list[sp.Symbol]) -> sp.Matrix:
+        r""":math:`\sum_j \lambda_j \nabla^2 g_j` in the multiplier symbols ``lam``."""
+        n = self.jacobian.cols
+        total = sp.zeros(n, n)
+        for lj, hj in zip(lam, self.hessians, strict=True):
+            total += lj * hj
+        return total
+
+
+def constraint_pieces(
+    constraints: tuple[sp.Expr, ...], q: tuple[sp.Symbol, ...], t: sp.Symbol
+) -> ConstraintPieces:
+    """Differentiate the constraints by ``q`` (once and twice) and by ``t``."""
+    g = sp.Matrix(constraints)
+    jacobian = g.jacobian(list(q))
+    return ConstraintPieces(
+        g=g,
+        jacobian=jacobian,
+        rate=g.diff(t),
+        hessians=tuple(sp.hessian(e, list(q)) for e in constraints),
+    )

@@ -12,13 +12,14 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 from sympy.core.function import AppliedUndef
 
-from .constraints import ConstraintPieces, constraint_pieces
 from .errors import DegenerateLagrangianError
 from .numeric import FlatEvaluator
 from .symbolic import (
+    ConstraintPieces,
     PointwisePieces,
     Structure,
     analyse_structure,
+    constraint_pieces,
     periodic_coordinates,
     pointwise_pieces,
     without_point_masses,
@@ -335,7 +336,7 @@ class LagrangianSystem:
             groups.append(
                 ("constraints", [*c.jacobian, *c.rate, *(e for h in c.hessians for e in h)])
             )
-        from .codegen import unsupported_functions
+        from .printer import unsupported_functions
 
         for name, exprs in groups:
             unsupported = unsupported_functions(sp.Tuple(*exprs))
@@ -581,7 +582,7 @@ def _check_printable(expr: sp.Expr, name: str) -> None:
             f"{name} contains undefined functions {', '.join(undefined)}: give them as explicit "
             "SymPy expressions"
         )
-    from .codegen import unsupported_functions
+    from .printer import unsupported_functions
 
     unsupported = unsupported_functions(expr)
     if unsupported:

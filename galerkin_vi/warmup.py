@@ -1,108 +1,142 @@
-"""Compile every time loop once for this machine (``galerkin-vi warmup``).
+"""Compile every time loop once for this machine: ``python -m galerkin_vi.warmup``.
 
 The loops of :mod:`galerkin_vi.loops` are compiled by numba on their first
 use and cached on disk (:func:`galerkin_vi.loops.loop_cache_dir`); after that,
 any system, degree, quadrature, step size or parameter value loads them in
-milliseconds. :func:`warm_up` compiles every variant ahead of use by running
-a few steps of three tiny systems that between them take every loop
-(general Newton, stage form, linear, explicit with a diagonal and with a full
-mass matrix, constrained). :func:`ensure_loops` does the same lazily, once,
-on the first integration on a machine, with a one-line message on stderr.
+milliseconds. The runs here take every compiled variant of every loop (see
+:mod:`galerkin_vi.loops.traits`) through two steps of a tiny system.
+:func:`galerkin_vi.loops.readiness.compile_all` runs them in parallel
+processes, ``--group g --of G`` each; ``galerkin-vi warmup`` is the command.
 """
 
 from __future__ import annotations
 
+import argparse
+import os
 import sys
 import time
-from pathlib import Path
+from collections.abc import Sequence
 
-__all__ = ["MARKER", "ensure_loops", "loops_ready", "warm_up"]
-
-#: written into the loops' cache folder once every loop is compiled
-MARKER = "complete"
-
-
-_ENSURED = False
-
-
-def _marker() -> Path:
-    from .loops import loop_cache_dir
-
-    return loop_cache_dir() / MARKER
-
-
-def loops_ready() -> bool:
-    """Whether every loop has been compiled and cached on this machine."""
-    return _marker().exists()
+__all__ = ["RUN_SECONDS", "main", "warm_up"]
 
 
 def _runs():
-    """(system, method, specialize, kernel path) of the warm-up runs, one per loop variant."""
+    """(label, system, method, specialize, q0, v0) of the warm-up runs, one per loop variant.
+
+    The variants are the combinations of the switches of :mod:`galerkin_vi.loops.traits`
+    that the loops take: stage form (diagonal or full mass matrix) x (dense or banded),
+    general loop (dense or banded) x (with or without L_qv / f_v couplings), linear
+    loop (dense or banded), constrained loop, explicit loop (diagonal or full mass
+    matrix) x (angles or none) x (autonomous or time-dependent).
+    """
     import sympy as sp
 
     from .method import Galerkin
     from .system import LagrangianSystem
 
+    t = sp.Symbol("t")
     q, v = sp.symbols("q v")
-    pendulum = LagrangianSystem(v**2 / 2 + sp.cos(q), q=[q], v=[v])
     x, y, vx, vy = sp.symbols("x y vx vy")
-    coupled = LagrangianSystem(
-        (vx**2 + vx * vy + vy**2) / 2 - (x**2 + y**2) / 2, q=[x, y], v=[vx, vy]
-    )
-    rod = LagrangianSystem(
-        (vx**2 + vy**2) / 2 - y, q=[x, y], v=[vx, vy], constraints=[(x**2 + y**2 - 1) / 2]
-    )
+    n = 8  # the smallest chain stored banded (coupling half-width 1)
+    qs, vs = sp.symbols(f"q0:{n}"), sp.symbols(f"v0:{n}")
+    springs = [qs[0], *(qs[i + 1] - qs[i] for i in range(n - 1)), -qs[-1]]
+    chain_v = sum(e**2 / 2 + e**4 / 4 for e in springs)
+    kinetic = sum(w**2 for w in vs) / 2
+    neighbours = sum(vs[i] * vs[i + 1] for i in range(n - 1)) / 10
+    full_mass = (vx**2 + vx * vy + vy**2) / 2
+    driven = sp.cos(t) / 10
+
+    def system(L, coords, velocities, **kw):
+        return LagrangianSystem(L, list(coords), list(velocities), **kw)
+
+    pendulum = system(v**2 / 2 + sp.cos(q), [q], [v])
+    quartic = system(v**2 / 2 - q**4 / 4, [q], [v])
+    coupled = system(full_mass - (x**2 + y**2) / 2, [x, y], [vx, vy])
+    coupled_angles = system(full_mass + sp.cos(x) + sp.cos(y), [x, y], [vx, vy])
+    chain = system(kinetic - chain_v, qs, vs)
+    chain_full_mass = system(kinetic + neighbours - chain_v, qs, vs)
+    linear_chain = system(kinetic - sum(e**2 / 2 for e in springs), qs, vs)
+    damped_chain = system(kinetic - chain_v, qs, vs, forces=[-w / 10 for w in vs])
+    gyroscopic = system((1 + q**2) * v**2 / 2 + sp.cos(q), [q], [v])
+    rod = system((vx**2 + vy**2) / 2 - y, [x, y], [vx, vy], constraints=[(x**2 + y**2 - 1) / 2])
+    timed_pendulum = system(v**2 / 2 + (1 + driven) * sp.cos(q), [q], [v], t=t)
+    timed_quartic = system(v**2 / 2 - q**4 / 4 + driven * q, [q], [v], t=t)
+    timed_angles = system(full_mass + (1 + driven) * sp.cos(x), [x, y], [vx, vy], t=t)
+    timed_coupled = system(full_mass - (x**2 + y**2) / 2 + driven * x, [x, y], [vx, vy], t=t)
+    one, two, chain0 = ([0.5], [0.1]), ([0.5, -0.2], [0.1, 0.0]), ([0.01] * n, [0.0] * n)
+    g1, g2 = Galerkin(1), Galerkin(2)
     return [
-        (pendulum, Galerkin(1), True, [1.0], [0.0]),
-        (pendulum, Galerkin(2), True, [1.0], [0.0]),
-        (pendulum, Galerkin(2), False, [1.0], [0.0]),
-        (coupled, Galerkin(1), True, [1.0, 0.0], [0.0, 0.0]),
-        (coupled, Galerkin(2), True, [1.0, 0.0], [0.0, 0.0]),
-        (rod, Galerkin(2), True, [0.6, -0.8], [0.8, 0.6]),
+        ("stage form, diagonal M", pendulum, g2, True, *one),
+        ("stage form, full M", coupled_angles, g2, True, *two),
+        ("stage form, diagonal M, banded", chain, g2, True, *chain0),
+        ("stage form, full M, banded", chain_full_mass, g2, True, *chain0),
+        ("general", pendulum, g2, False, *one),
+        ("general, couplings", gyroscopic, g2, True, *one),
+        ("general, banded", chain, g2, False, *chain0),
+        ("general, banded, couplings", damped_chain, g2, True, *chain0),
+        ("linear", coupled, g2, True, *two),
+        ("linear, banded", linear_chain, g2, True, *chain0),
+        ("constrained", rod, g2, True, [0.6, -0.8], [0.8, 0.6]),
+        ("explicit", pendulum, g1, True, *one),
+        ("explicit, no angles", quartic, g1, True, *one),
+        ("explicit, full M", coupled_angles, g1, True, *two),
+        ("explicit, full M, no angles", coupled, g1, True, *two),
+        ("explicit, time", timed_pendulum, g1, True, *one),
+        ("explicit, time, no angles", timed_quartic, g1, True, *one),
+        ("explicit, time, full M", timed_angles, g1, True, *two),
+        ("explicit, time, full M, no angles", timed_coupled, g1, True, *two),
     ]
 
 
-def warm_up(verbose: bool = False) -> dict[str, float]:
-    """Compile (or load) every loop variant; return the seconds each kernel path took.
+#: compile seconds of each run on 2 shared cores (numba 0.68), in the order of
+#: :func:`_runs`: the parallel groups are balanced by them
+RUN_SECONDS = (14, 14, 14, 14, 8, 8, 8, 8, 5, 5, 12, 1.3, 1.3, 1.3, 1.3, 1.3, 1.3, 1.3, 1.3)
 
-    Safe to run from several processes at once: numba writes its cache files
-    through temporary files, and the last complete one wins.
+
+def _group(index: int, count: int) -> list[int]:
+    """Runs of group ``index`` of ``count``: longest first, each to the least loaded group."""
+    loads = [0.0] * count
+    members: list[list[int]] = [[] for _ in range(count)]
+    for run in sorted(range(len(RUN_SECONDS)), key=lambda r: -RUN_SECONDS[r]):
+        target = loads.index(min(loads))
+        loads[target] += RUN_SECONDS[run]
+        members[target].append(run)
+    return sorted(members[index])
+
+
+def warm_up(group: int = 0, of: int = 1, verbose: bool = False) -> dict[str, float]:
+    """Run group ``group`` of ``of`` of the warm-up runs in this process.
+
+    Returns the seconds each run took, by the variant's label.
     """
     from .integrator import Integrator
 
-    global _ENSURED
-    _ENSURED = True  # the runs below must not start a second warm-up
+    runs = _runs()
     seconds: dict[str, float] = {}
-    for system, method, specialize, q0, v0 in _runs():
+    for index in _group(group, of):
+        label, system, method, specialize, q0, v0 = runs[index]
         integrator = Integrator(system, method, specialize=specialize)
-        path = integrator.kernel_path
         start = time.perf_counter()
         integrator.integrate(q0, v0=v0, h=0.01, n_steps=2)
-        seconds[f"{path} ({method!r})"] = time.perf_counter() - start
+        seconds[label] = time.perf_counter() - start
         if verbose:
-            print(f"  {path:12s} {method!r}: {seconds[f'{path} ({method!r})']:.1f} s")
-    marker = _marker()
-    marker.parent.mkdir(parents=True, exist_ok=True)
-    marker.write_text("every loop compiled\n")
+            print(f"  {seconds[label]:5.1f} s  {label}", flush=True)
     return seconds
 
 
-def ensure_loops() -> None:
-    """Before the first integration on a machine: compile every loop, saying so.
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m galerkin_vi.warmup [--group g --of G]``."""
+    parser = argparse.ArgumentParser(prog="python -m galerkin_vi.warmup")
+    parser.add_argument("--group", type=int, default=0)
+    parser.add_argument("--of", type=int, default=1)
+    args = parser.parse_args(argv)
+    if not 0 <= args.group < args.of:
+        parser.error(f"--group must be in [0, {args.of})")
+    # this process is the warm-up: its integrations must not start another one
+    os.environ["GALERKIN_VI_WARMUP_CHILD"] = "1"
+    warm_up(args.group, args.of, verbose=True)
+    return 0
 
-    Cheap after the first call in a process (a flag) and on a machine where the
-    loops are cached (one file test).
-    """
-    global _ENSURED
-    if _ENSURED:
-        return
-    _ENSURED = True
-    if loops_ready():
-        return
-    sys.stderr.write(
-        "galerkin_vi: compiling the time loops once for this machine (about a minute; "
-        "`galerkin-vi warmup` does this ahead of use)...\n"
-    )
-    start = time.perf_counter()
-    warm_up()
-    sys.stderr.write(f"galerkin_vi: time loops compiled in {time.perf_counter() - start:.0f} s\n")
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -63,9 +63,17 @@ def warm_cache(tmp_path):
     import shutil
 
     from galerkin_vi.loops import loop_cache_dir
-    from galerkin_vi.warmup import warm_up
+    from galerkin_vi.loops.readiness import ensure_loops
 
-    warm_up()
+    ensure_loops()
     source = loop_cache_dir()
     shutil.copytree(source, tmp_path / "loops" / source.name)
     return tmp_path
+
+
+def pytest_configure(config):
+    """Compile the loops once, in the main process, before xdist starts its workers."""
+    if not hasattr(config, "workerinput"):
+        from galerkin_vi.loops.readiness import ensure_loops
+
+        ensure_loops()

@@ -74,25 +74,57 @@ def test_a_new_system_compiles_only_its_point_functions():
     assert not any(name.endswith("_loop") for name in names), names
 
 
-def test_each_loop_has_one_compiled_variant():
-    # every path of the warm-up, and the explicit loop's two mass-matrix variants
+def test_the_warm_up_compiles_every_variant_and_the_problem_library_adds_none():
+    # the switches of loops.traits: stage form and general loop 4 variants each,
+    # linear 2, constrained 1, explicit 8; every model of the problem library must
+    # find its variant among them
     from galerkin_vi.warmup import warm_up
 
-    warm_up()
-    for loop in (
-        loops.general_loop,
-        loops.linear_loop,
-        loops.stage_form_loop,
-        loops.constrained_loop,
-    ):
-        assert len(loop.signatures) == 1, loop
-    assert len(loops.explicit_loop.signatures) == 2
+    for group in range(3):
+        warm_up(group, 3)
+    expected = {
+        loops.stage_form_loop: 4,
+        loops.general_loop: 4,
+        loops.linear_loop: 2,
+        loops.constrained_loop: 1,
+        loops.explicit_loop: 8,
+    }
+    assert {loop: len(loop.signatures) for loop in expected} == expected
+    factories = [
+        problems.pendulum,
+        problems.kepler,
+        problems.double_pendulum,
+        problems.henon_heiles,
+        problems.harmonic_oscillator,
+        problems.damped_oscillator,
+        problems.driven_oscillator,
+        problems.forced_pendulum,
+        problems.spherical_pendulum,
+        problems.constrained_spherical_pendulum,
+        problems.cartesian_pendulum,
+        problems.kapitza_pendulum,
+        problems.rotating_hoop,
+        problems.fermi_pasta_ulam,
+        lambda: problems.spring_chain(10),
+        lambda: problems.spring_chain(10, beta=1.0),
+    ]
+
+    def run():
+        for factory in factories:
+            problem = factory()
+            for method in (gvi.Galerkin(1), gvi.Galerkin(2, gvi.gauss_legendre(2))):
+                if problem.system.m and not method.collocated:
+                    continue
+                for specialize in (True, False):
+                    gvi.Integrator(problem.system, method, specialize=specialize).integrate(
+                        problem.q0, problem.v0, h=0.01, n_steps=2
+                    )
+
+    assert not any(name.endswith("_loop") for name in _compilations(run))
+    assert {loop: len(loop.signatures) for loop in expected} == expected
 
 
 def test_banded_chain_uses_the_same_loops_as_dense_systems():
-    from galerkin_vi.warmup import warm_up
-
-    warm_up()
     chain = problems.spring_chain(12)
     integrator = gvi.Integrator(chain.system, gvi.Galerkin(2), specialize=False)
     assert integrator._spec.banded

@@ -5,7 +5,7 @@ Three stages, each a function of the previous one's output:
 1. :mod:`.spec`: the expressions, renamed to array slots (:func:`kernel_spec`),
    and the key of their cache entry (:func:`signature`);
 2. :mod:`.source`: Python source of the point functions (:func:`render_module`),
-   printed by :mod:`.printer`;
+   printed by :mod:`galerkin_vi.printer`;
 3. :mod:`.compiled`: the source cached on disk and compiled as numba ``cfunc``
    (imported on demand: it needs numba).
 
@@ -15,7 +15,7 @@ The time loops are not generated: they are ordinary modules of
 
 from __future__ import annotations
 
-from .printer import KernelPrinter, unsupported_functions
+from ..printer import KernelPrinter, unsupported_functions
 from .source import render_module
 from .spec import (
     GENERATOR_VERSION,

@@ -125,8 +125,22 @@ class PointFunctions:
                     )
         out = np.zeros(len(_SLOTS), dtype=np.int64)
         for name, compiled in self.compiled.items():
-            out[_SLOTS[name]] = compiled.address
+            out[_SLOTS[name]] = _body_address(compiled)
         return out
+
+
+def _body_address(compiled) -> int:
+    """Address of the compiled body inside a numba ``cfunc`` (not of its C wrapper).
+
+    The loops call the body directly with numba's calling convention
+    (:mod:`galerkin_vi.loops.point`): one call per evaluation instead of two.
+    The body's symbol is the wrapper's without numba's ``cfunc.`` prefix.
+    """
+    name = compiled._wrapper_name
+    prefix = "cfunc."
+    if not name.startswith(prefix):
+        raise RuntimeError(f"unexpected numba cfunc wrapper name {name!r}")
+    return compiled._library.get_pointer_to_function(name[len(prefix) :])
 
 
 def load_point_functions(spec: KernelSpec) -> PointFunctions:

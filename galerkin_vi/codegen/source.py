@@ -1,7 +1,7 @@
 """Stage 2 of code generation: the point functions of one system as Python source.
 
 :func:`render_module` runs one joint common-subexpression elimination per
-point function and prints it with :class:`~.printer.KernelPrinter`. The
+point function and prints it with :class:`~galerkin_vi.printer.KernelPrinter`. The
 functions are plain Python over indexable arguments: numba compiles each as a
 C-callable function (:mod:`.compiled`), and the same text runs uncompiled on
 NumPy arrays, which the tests use. Large systems are split into parts of
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .printer import KernelPrinter
+from ..printer import KernelPrinter
 from .spec import KernelSpec
 
 __all__ = ["FUNCTIONS", "POINT_CHUNK", "render_module"]

@@ -1,8 +1,11 @@
 """The two decorators of the loops and where numba caches what they compile.
 
-``kernel`` marks a helper: compiled into (inlined in) every loop that calls
-it, never on its own. ``driver`` marks a loop's entry point: compiled once per
-machine and argument types and cached on disk by numba.
+``kernel`` marks a helper: inlined (in numba's IR) into every loop that
+calls it, never compiled on its own; measured, plain calls between compiled
+functions (numba's reference counting at each call) made the stage form 2x
+slower per step, while halving the compile time. ``driver`` marks a loop's
+entry point: compiled once per machine and argument types and cached on disk
+by numba.
 
 numba would cache a driver beside its source file, and judge staleness by that
 file alone; a driver inlines helpers from several modules, so an edit to one

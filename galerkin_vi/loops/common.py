@@ -75,7 +75,7 @@ def first_guess(C, d, h, v0):
 
 
 @kernel
-def advance_position(qk, q_lost, C, turns, periodic, has_periodic):
+def advance_position(qk, q_lost, C, turns, periodic):
     """q_{k+1} = q_k + C[-1] with compensated (Kahan) summation, angles kept in [-pi, pi).
 
     ``q_lost`` carries the rounding error of each addition into the next one;
@@ -88,7 +88,7 @@ def advance_position(qk, q_lost, C, turns, periodic, has_periodic):
         total = qk[a] + y
         q_lost[a] = (total - qk[a]) - y
         qk[a] = total
-    if has_periodic:
+    if periodic is not None:
         wrap_angles(qk, q_lost, turns, periodic)
 
 
@@ -152,9 +152,15 @@ def save_row(saved, t, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, pe
     Angles are saved as they are kept, in :math:`[-\pi, \pi)` with their
     compensation ``q_lost`` applied, and the whole turns removed so far go to
     ``turns_out`` (the caller adds them back: saving the continuous angle itself
-    would round it to the precision of its size).
+    would round it to the precision of its size). ``periodic`` is the mask of
+    the angles, or ``None`` when there are none (a compiled variant of its own).
     """
     t_out[saved] = t
+    if periodic is None:
+        for a in range(qk.shape[0]):
+            q_out[saved, a] = qk[a]
+            p_out[saved, a] = pk[a]
+        return saved + 1
     for a in range(qk.shape[0]):
         if periodic[a]:
             q_out[saved, a] = qk[a] - q_lost[a]

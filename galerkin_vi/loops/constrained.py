@@ -47,7 +47,7 @@ from .point import (
     point_constraint_rate,
     point_hessian,
 )
-from .traits import HAS_PERIODIC
+from .traits import HAS_FV, HAS_LQV
 
 __all__ = ["constrained_loop", "project_hidden", "solve_constrained_stages"]
 
@@ -102,7 +102,7 @@ def solve_constrained_stages(
         else:
             assemble_newton(
                 fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K,
-                traits, pattern,
+                traits, pattern, (traits[HAS_LQV] != 0, traits[HAS_FV] != 0),
             )  # fmt: skip
             A[:, :] = 0.0
             for i in range(sn):
@@ -290,7 +290,6 @@ def constrained_loop(
     Same contract as :func:`.general_loop`; ``m`` is the number of constraints.
     """
     n = q0.shape[0]
-    has_periodic = traits[HAS_PERIODIC] != 0
     s1 = d.shape[0]
     s = s1 - 1
     work = make_work(s, n, traits, pattern)
@@ -304,7 +303,7 @@ def constrained_loop(
     qk = q0.copy()
     q_lost = np.zeros(n)
     turns = np.zeros(n)
-    if has_periodic:
+    if periodic is not None:
         wrap_angles(qk, q_lost, turns, periodic)
     pk = p0.copy()
     p_tilde = np.zeros(n)
@@ -352,7 +351,7 @@ def constrained_loop(
             worst = residual
         for a in range(n):
             pk[a] = p_next[a]
-        advance_position(qk, q_lost, C, turns, periodic, has_periodic)
+        advance_position(qk, q_lost, C, turns, periodic)
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             saved = save_row(
                 saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out,

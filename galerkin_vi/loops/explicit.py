@@ -21,20 +21,19 @@ import numpy as np
 from ._jit import driver, kernel
 from .common import STATUS_NONFINITE, STATUS_OK, save_row, wrap_angles
 from .point import point_gradient
-from .traits import AUTONOMOUS, HAS_PERIODIC
 
 __all__ = ["explicit_loop"]
 
 
 @kernel
-def _velocity_step(qk, q_lost, rhs, Minv, h, has_periodic):
+def _velocity_step(qk, q_lost, rhs, Minv, h, periodic):
     """q += h M^{-1} rhs, compensated when angles are to be wrapped exactly."""
     n = qk.shape[0]
     for a in range(n):
         acc = 0.0
         for b in range(n):
             acc += Minv[a, b] * rhs[b]
-        if has_periodic:
+        if periodic is not None:
             y = h * acc - q_lost[a]
             total = qk[a] + y
             q_lost[a] = (total - qk[a]) - y
@@ -44,12 +43,12 @@ def _velocity_step(qk, q_lost, rhs, Minv, h, has_periodic):
 
 
 @kernel
-def _diagonal_velocity_step(qk, q_lost, rhs, Minv_diagonal, h, has_periodic):
+def _diagonal_velocity_step(qk, q_lost, rhs, Minv_diagonal, h, periodic):
     """As :func:`_velocity_step` for a diagonal M: n, not n^2, per step."""
     n = qk.shape[0]
     for a in range(n):
         acc = Minv_diagonal[a] * rhs[a]
-        if has_periodic:
+        if periodic is not None:
             y = h * acc - q_lost[a]
             total = qk[a] + y
             q_lost[a] = (total - qk[a]) - y
@@ -61,8 +60,8 @@ def _diagonal_velocity_step(qk, q_lost, rhs, Minv_diagonal, h, has_periodic):
 @driver
 def explicit_loop(
     fn,
-    traits,
     periodic,
+    time_dependent,
     q0,
     p0,
     t0,
@@ -82,15 +81,16 @@ def explicit_loop(
     ``Minv`` is :math:`M^{-1}`; ``Minv_diagonal`` its diagonal when :math:`M`
     is diagonal (point masses: n, not :math:`n^2`, per step), else ``None``
     (a separate compiled variant, so that the dense product is not even in the
-    diagonal one). Returns (status, steps completed, rows saved).
+    diagonal one). ``periodic`` (the angles' mask, or ``None``) and
+    ``time_dependent`` (``True``, or ``None`` for an autonomous system) are
+    switches of the same kind: a run-time test of either cost the pendulum
+    25 % per step. Returns (status, steps completed, rows saved).
     """
     n = q0.shape[0]
-    autonomous = traits[AUTONOMOUS] != 0
-    has_periodic = traits[HAS_PERIODIC] != 0
     qk = q0.copy()
     q_lost = np.zeros(n)
     turns = np.zeros(n)
-    if has_periodic:
+    if periodic is not None:
         wrap_angles(qk, q_lost, turns, periodic)
     pk = p0.copy()
     zero = np.zeros(n)
@@ -110,7 +110,7 @@ def explicit_loop(
     for k in range(n_steps):
         tk = t0 + k * h
         tk1 = t0 + (k + 1) * h
-        if not autonomous:
+        if time_dependent is not None:
             point_gradient(fn, tk, qk, zero, prm, lq, a0)
             point_gradient(fn, tk1, qk, zero, prm, lq_next, a1)
         for a in range(n):
@@ -120,10 +120,10 @@ def explicit_loop(
             turns_before[a] = turns[a]
             rhs[a] = pk[a] + 0.5 * h * lq[a] - 0.5 * (a0[a] + a1[a])
         if Minv_diagonal is None:
-            _velocity_step(qk, q_lost, rhs, Minv, h, has_periodic)
+            _velocity_step(qk, q_lost, rhs, Minv, h, periodic)
         else:
-            _diagonal_velocity_step(qk, q_lost, rhs, Minv_diagonal, h, has_periodic)
-        if has_periodic:
+            _diagonal_velocity_step(qk, q_lost, rhs, Minv_diagonal, h, periodic)
+        if periodic is not None:
             wrap_angles(qk, q_lost, turns, periodic)
         point_gradient(fn, tk1, qk, zero, prm, lq_next, a1)
         finite = True

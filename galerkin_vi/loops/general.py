@@ -45,7 +45,7 @@ from .linalg import (
     unknown,
 )
 from .point import point_gradient, point_hessian
-from .traits import BAND, HAS_FV, HAS_PERIODIC
+from .traits import HAS_FV
 
 __all__ = [
     "assemble_gradient",
@@ -106,8 +106,9 @@ def momentum_increment(fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, out):
 
 @kernel
 def assemble_newton(
-    fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K, traits, pattern
-):
+    fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K, traits, pattern,
+    couplings,
+):  # fmt: skip
     """G as above and K[(nu, a), (mu, c)] = dG^nu_a / dq^mu_c, nu = 0..s-1, mu = 1..s.
 
     K is stored as :func:`~.linalg.new_jacobian` allocates it, rows and columns
@@ -144,11 +145,14 @@ def assemble_newton(
                     Fv,
                     traits,
                     pattern,
+                    couplings,
                 )
 
 
 @kernel
-def solve_stages(fn, t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, traits, pattern):
+def solve_stages(
+    fn, t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, traits, pattern, couplings
+):
     r"""Newton on the stage equations; C[1:] holds the guess on entry, the solution on exit.
 
     Full Newton with the exact Jacobian, assembled and factorised, until an
@@ -162,7 +166,6 @@ def solve_stages(fn, t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, tr
     Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = work
     s1, n = C.shape
     s = s1 - 1
-    banded = traits[BAND] >= 0
     previous = np.inf
     residual = np.inf
     frozen = False
@@ -177,25 +180,25 @@ def solve_stages(fn, t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, tr
         else:
             assemble_newton(
                 fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K,
-                traits, pattern,
+                traits, pattern, couplings,
             )  # fmt: skip
         residual = 0.0
         for nu in range(s):
             for a in range(n):
                 val = G[nu, a] + (pk[a] if nu == 0 else 0.0)
-                R[unknown(nu, a, s, n, banded)] = -val
+                R[unknown(nu, a, s, n, pattern)] = -val
                 if not abs(val) <= residual:  # also catches NaN
                     residual = abs(val)
         if not residual < 1e300:
             return STATUS_NONFINITE, it, np.inf, residual
-        if not frozen and not factor_jacobian(K, piv, s, traits):
+        if not frozen and not factor_jacobian(K, piv, s, traits, pattern):
             return STATUS_SINGULAR, it, np.inf, residual
-        solve_jacobian(K, piv, s, R, traits)
+        solve_jacobian(K, piv, s, R, traits, pattern)
         increment = 0.0
         size = 0.0
         for nu in range(1, s1):
             for a in range(n):
-                delta = R[unknown(nu - 1, a, s, n, banded)]
+                delta = R[unknown(nu - 1, a, s, n, pattern)]
                 C[nu, a] += delta
                 if abs(delta) > increment:
                     increment = abs(delta)
@@ -215,7 +218,7 @@ def solve_stages(fn, t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, tr
 @kernel
 def make_work(s, n, traits, pattern):
     """Preallocated work arrays of one step (allocated once per run)."""
-    nnz = block_size(n, traits, pattern)
+    nnz = block_size(n, pattern)
     Q = np.zeros(n)
     V = np.zeros(n)
     Lq = np.zeros(n)
@@ -224,7 +227,7 @@ def make_work(s, n, traits, pattern):
     Lqv = np.zeros(nnz)
     Lvv = np.zeros(nnz)
     G = np.zeros((s + 1, n))
-    K = new_jacobian(s, n, traits)
+    K = new_jacobian(s, n, traits, pattern)
     R = np.zeros(s * n)
     piv = np.zeros(s * n, dtype=np.int64)
     Fv = np.zeros(nnz if traits[HAS_FV] != 0 else 1)
@@ -237,6 +240,7 @@ def general_loop(
     traits,
     pattern,
     periodic,
+    couplings,
     q0,
     p0,
     v0,
@@ -263,7 +267,8 @@ def general_loop(
     """Run ``n_steps`` steps of the position–momentum map from (q0, p0).
 
     ``fn`` holds the point functions' addresses (:mod:`.point`), ``traits``,
-    ``pattern`` and ``periodic`` the system's structure (:mod:`.traits`).
+    ``pattern`` (``None``: dense) and ``periodic`` the system's structure,
+    ``couplings`` the switch of :math:`L_{qv}` and :math:`f_v` (:mod:`.traits`).
     ``iterations_out[j]`` receives the largest Newton iteration count of steps
     ``j*save_every .. (j+1)*save_every - 1`` (every step when save_every = 1) and
     ``iteration_total[0]`` their sum: a long run with ``save_every`` stores
@@ -275,7 +280,6 @@ def general_loop(
     Returns (status, steps completed, rows saved, max residual, failing increment).
     """
     n = q0.shape[0]
-    has_periodic = traits[HAS_PERIODIC] != 0
     s1 = d.shape[0]
     s = s1 - 1
     work = make_work(s, n, traits, pattern)
@@ -287,7 +291,7 @@ def general_loop(
     qk = q0.copy()
     q_lost = np.zeros(n)  # compensated summation: low-order bits of q lost so far
     turns = np.zeros(n)  # whole turns removed from periodic coordinates
-    if has_periodic:
+    if periodic is not None:
         wrap_angles(qk, q_lost, turns, periodic)
     pk = p0.copy()
     first_guess(C, d, h, v0)
@@ -298,7 +302,7 @@ def general_loop(
         if k > 0:
             extrapolate(C, C_prev, E)
         status, its, increment, residual = solve_stages(
-            fn, tk, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, traits, pattern
+            fn, tk, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, traits, pattern, couplings
         )
         slot = k // save_every
         if its > iterations_out[slot]:
@@ -317,7 +321,7 @@ def general_loop(
         if residual > worst:
             worst = residual
         compensated_add(pk, p_lost, dp)
-        advance_position(qk, q_lost, C, turns, periodic, has_periodic)
+        advance_position(qk, q_lost, C, turns, periodic)
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             saved = save_row(
                 saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out,

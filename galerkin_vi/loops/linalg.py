@@ -6,6 +6,12 @@ they are compiled into the loops. The stage Jacobian is stored dense,
 ``(s n, s n)`` node-major, or, when the coordinates couple only within a band
 of half-width :math:`w` (``traits[BAND] = w``), as a LAPACK band matrix
 ordered coordinate-major, with half-bandwidth :math:`(w + 1) s - 1`.
+
+Banded storage is chosen by the type of ``pattern``, a switch
+(:mod:`.traits`): the sparsity pattern of the blocks, or ``None`` (dense).
+The couplings :math:`L_{qv}` and :math:`f_v` are one switch, ``couplings``:
+``None`` where the system has neither (compiled out), else the pair of
+run-time flags (has :math:`L_{qv}`, has :math:`f_v`).
 """
 
 # ruff: noqa: N803, N806
@@ -15,7 +21,7 @@ import numpy as np
 
 from .. import newton
 from ._jit import kernel
-from .traits import BAND, HAS_FV, HAS_LQV
+from .traits import BAND
 
 __all__ = [
     "CONTINUE",
@@ -46,47 +52,51 @@ def band_half_width(s, band):
 
 
 @kernel
-def unknown(nu, a, s, n, banded):
+def unknown(nu, a, s, n, pattern):
     """Position of coordinate a of control point nu (0-based among the unknowns).
 
     Node-major (nu n + a) for dense storage; coordinate-major (a s + nu) for
     banded storage, which keeps coupled coordinates' unknowns close together.
     """
-    if banded:
+    if pattern is not None:
         return a * s + nu
     return nu * n + a
 
 
 @kernel
-def block_size(n, traits, pattern):
+def block_size(n, pattern):
     """Length of the flat second-derivative arrays: n^2 dense, the pattern's size banded."""
-    if traits[BAND] >= 0:
+    if pattern is not None:
         return pattern.shape[0]
     return n * n
 
 
 @kernel
-def new_jacobian(s, n, traits):
+def new_jacobian(s, n, traits, pattern):
     """Zero stage Jacobian: banded storage (3 kb + 1, s n) or dense (s n, s n)."""
-    if traits[BAND] >= 0:
+    if pattern is not None:
         return np.zeros((3 * band_half_width(s, traits[BAND]) + 1, s * n))
     return np.zeros((s * n, s * n))
 
 
 @kernel
-def add_block(K, nu, mu, s, n, w_vv, Lvv, w_qq, Lqq, w_qv, w_vq, Lqv, Fv, traits, pattern):
+def add_block(
+    K, nu, mu, s, n, w_vv, Lvv, w_qq, Lqq, w_qv, w_vq, Lqv, Fv, traits, pattern, couplings
+):
     r"""Add to block (equation nu, control point mu) of K the point-wise second derivatives.
 
     Block :math:`(\nu, \mu)` gains
     :math:`w_{vv} L_{vv} + w_{qq} (L_{qq} + f_q) + w_{qv} (L_{qv} + f_v) + w_{vq} L_{qv}^T`,
     with the blocks stored flat (``a n + c``, or the pattern position when banded;
     ``pattern[k] = (row, column, position of the transposed entry)``).
+    ``couplings``: ``None``, or whether :math:`L_{qv}` and :math:`f_v` are present.
     """
-    has_lqv = traits[HAS_LQV] != 0
-    has_fv = traits[HAS_FV] != 0
-    band = traits[BAND]
-    if band >= 0:
-        kb = band_half_width(s, band)
+    has_lqv = False
+    has_fv = False
+    if couplings is not None:
+        has_lqv, has_fv = couplings
+    if pattern is not None:
+        kb = band_half_width(s, traits[BAND])
         for k in range(pattern.shape[0]):
             a = pattern[k, 0]
             cc = pattern[k, 1]
@@ -123,21 +133,19 @@ def add_block(K, nu, mu, s, n, w_vv, Lvv, w_qq, Lqq, w_qv, w_vq, Lqv, Fv, traits
 
 
 @kernel
-def factor_jacobian(K, piv, s, traits):
+def factor_jacobian(K, piv, s, traits, pattern):
     """LU-factorise K in place (banded or dense); False if singular."""
-    band = traits[BAND]
-    if band >= 0:
-        kb = band_half_width(s, band)
+    if pattern is not None:
+        kb = band_half_width(s, traits[BAND])
         return band_lu_factor(K, piv, kb, kb)
     return lu_factor_inplace(K, piv)
 
 
 @kernel
-def solve_jacobian(K, piv, s, R, traits):
+def solve_jacobian(K, piv, s, R, traits, pattern):
     """Overwrite R with K^{-1} R from :func:`factor_jacobian`'s factors."""
-    band = traits[BAND]
-    if band >= 0:
-        kb = band_half_width(s, band)
+    if pattern is not None:
+        kb = band_half_width(s, traits[BAND])
         band_lu_solve(K, piv, kb, kb, R)
     else:
         lu_solve_inplace(K, piv, R)

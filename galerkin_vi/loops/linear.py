@@ -24,7 +24,7 @@ from .common import (
 )
 from .general import assemble_gradient, assemble_newton, make_work, momentum_increment
 from .linalg import factor_jacobian, solve_jacobian, unknown
-from .traits import BAND, HAS_PERIODIC
+from .traits import HAS_FV, HAS_LQV
 
 __all__ = ["linear_loop"]
 
@@ -59,8 +59,8 @@ def linear_loop(
     Returns (status, steps completed, rows saved).
     """
     n = q0.shape[0]
-    has_periodic = traits[HAS_PERIODIC] != 0
-    banded = traits[BAND] >= 0
+    # the Jacobian is assembled once: the couplings are run-time flags here, not variants
+    couplings = (traits[HAS_LQV] != 0, traits[HAS_FV] != 0)
     s1 = d.shape[0]
     s = s1 - 1
     work = make_work(s, n, traits, pattern)
@@ -72,15 +72,16 @@ def linear_loop(
     qk = q0.copy()
     q_lost = np.zeros(n)
     turns = np.zeros(n)
-    if has_periodic:
+    if periodic is not None:
         wrap_angles(qk, q_lost, turns, periodic)
     pk = p0.copy()
     first_guess(C, d, h, v0)
     assemble_newton(
-        fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K, traits, pattern
-    )
+        fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K, traits, pattern,
+        couplings,
+    )  # fmt: skip
     saved = save_row(0, t0, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic)
-    if not factor_jacobian(K, piv, s, traits):
+    if not factor_jacobian(K, piv, s, traits, pattern):
         return STATUS_SINGULAR, 0, saved
     for k in range(n_steps):
         tk = t0 + k * h
@@ -89,11 +90,11 @@ def linear_loop(
         assemble_gradient(fn, tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
         for nu in range(s):
             for a in range(n):
-                R[unknown(nu, a, s, n, banded)] = -(G[nu, a] + (pk[a] if nu == 0 else 0.0))
-        solve_jacobian(K, piv, s, R, traits)
+                R[unknown(nu, a, s, n, pattern)] = -(G[nu, a] + (pk[a] if nu == 0 else 0.0))
+        solve_jacobian(K, piv, s, R, traits, pattern)
         for nu in range(1, s1):
             for a in range(n):
-                C[nu, a] += R[unknown(nu - 1, a, s, n, banded)]
+                C[nu, a] += R[unknown(nu - 1, a, s, n, pattern)]
         finite = momentum_increment(fn, tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, dp)
         for a in range(n):
             if not finite or not abs(C[s, a]) < 1e300:
@@ -104,7 +105,7 @@ def linear_loop(
                     )
                 return STATUS_NONFINITE, k, saved
         compensated_add(pk, p_lost, dp)
-        advance_position(qk, q_lost, C, turns, periodic, has_periodic)
+        advance_position(qk, q_lost, C, turns, periodic)
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             saved = save_row(
                 saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out,

@@ -45,7 +45,7 @@ from .linalg import (
     unknown,
 )
 from .point import point_gradient, point_hessian
-from .traits import AUTONOMOUS, BAND, DIAGONAL_MASS, HAS_PERIODIC
+from .traits import AUTONOMOUS
 
 __all__ = ["finish_step", "stage_form_loop", "stage_solve"]
 
@@ -63,15 +63,16 @@ MASS_RETRY = 64
 def mass_times(M, mass_diagonal, x, out, traits, pattern):
     """out = M x for the constant mass matrix stored flat (dense or pattern order).
 
-    With a diagonal M (point masses, the common case) only ``mass_diagonal``
-    is used.
+    With a diagonal M (point masses, the common case) ``mass_diagonal`` is its
+    diagonal, else ``None``: a separate compiled variant, so that the dense loop
+    is not even compiled in (a run-time test cost the pendulum 40 % per step).
     """
     n = x.shape[0]
-    if traits[DIAGONAL_MASS] != 0:
+    if mass_diagonal is not None:
         for a in range(n):
             out[a] = mass_diagonal[a] * x[a]
         return
-    if traits[BAND] >= 0:
+    if pattern is not None:
         for a in range(n):
             out[a] = 0.0
         for k in range(pattern.shape[0]):
@@ -85,27 +86,26 @@ def mass_times(M, mass_diagonal, x, out, traits, pattern):
 
 
 @kernel
-def solve_mass(KM, pivM, mass_diagonal, x, traits):
+def solve_mass(KM, pivM, mass_diagonal, x, traits, pattern):
     """x <- M^{-1} x with the factors of :func:`stage_form_loop`'s mass matrix."""
-    if traits[DIAGONAL_MASS] != 0:
+    if mass_diagonal is not None:
         for a in range(x.shape[0]):
             x[a] /= mass_diagonal[a]
         return
-    solve_jacobian(KM, pivM, 1, x, traits)
+    solve_jacobian(KM, pivM, 1, x, traits, pattern)
 
 
 @kernel
-def diagonal_of(M, n, traits, pattern):
-    """The diagonal of the flat-stored M (dense ``a n + a``, or the pattern's diagonal)."""
-    diagonal = np.zeros(n)
-    if traits[BAND] >= 0:
+def diagonal_of(M, n, traits, pattern, diagonal):
+    """Write the diagonal of the flat-stored M (dense ``a n + a``, or the pattern's) into
+    ``diagonal``."""
+    if pattern is not None:
         for k in range(pattern.shape[0]):
             if pattern[k, 0] == pattern[k, 1]:
                 diagonal[pattern[k, 0]] = M[k]
-        return diagonal
+        return
     for a in range(n):
         diagonal[a] = M[a * n + a]
-    return diagonal
 
 
 @kernel
@@ -147,7 +147,6 @@ def stage_solve(
     Q, zero, Lq, Lv, Lqq, Lqv, Lvv, Fv, F, K, R, piv, x, mz = work
     u, n = Z.shape
     autonomous = traits[AUTONOMOUS] != 0
-    banded = traits[BAND] >= 0
     previous = np.inf
     residual = np.inf
     frozen = False
@@ -185,6 +184,7 @@ def stage_solve(
                         Fv,
                         traits,
                         pattern,
+                        None,
                     )
             else:
                 point_gradient(fn, tj, Q, zero, prm, Lq, Lv)
@@ -200,7 +200,7 @@ def stage_solve(
                 for jl in range(u):
                     acc += h2 * force_table[il, implicit[jl]] * F[implicit[jl], a]
                 val = mz[a] - acc
-                R[unknown(il, a, u, n, banded)] = -val
+                R[unknown(il, a, u, n, pattern)] = -val
                 if not abs(val) <= residual:  # also catches NaN
                     residual = abs(val)
         if not residual < 1e300:
@@ -208,19 +208,19 @@ def stage_solve(
         if cheap:
             for il in range(u):
                 for a in range(n):
-                    x[a] = R[unknown(il, a, u, n, banded)]
-                solve_mass(KM, pivM, mass_diagonal, x, traits)
+                    x[a] = R[unknown(il, a, u, n, pattern)]
+                solve_mass(KM, pivM, mass_diagonal, x, traits, pattern)
                 for a in range(n):
-                    R[unknown(il, a, u, n, banded)] = x[a]
+                    R[unknown(il, a, u, n, pattern)] = x[a]
         else:
-            if full and not factor_jacobian(K, piv, u, traits):
+            if full and not factor_jacobian(K, piv, u, traits, pattern):
                 return STATUS_SINGULAR, it, np.inf, residual, switched
-            solve_jacobian(K, piv, u, R, traits)
+            solve_jacobian(K, piv, u, R, traits, pattern)
         increment = 0.0
         size = 0.0
         for il in range(u):
             for a in range(n):
-                delta = R[unknown(il, a, u, n, banded)]
+                delta = R[unknown(il, a, u, n, pattern)]
                 Z[il, a] += delta
                 if abs(delta) > increment:
                     increment = abs(delta)
@@ -256,6 +256,7 @@ def stage_form_loop(
     traits,
     pattern,
     periodic,
+    mass_diagonal,
     q0,
     p0,
     v0,
@@ -290,18 +291,18 @@ def stage_form_loop(
 ):
     """Run ``n_steps`` steps of the stage form from (q0, p0); as :func:`.general_loop`.
 
-    ``cheap_first``: start each step with the constant-mass iteration (see
-    :func:`stage_solve`). Returns (status, steps completed, rows saved, max
-    residual, failing increment).
+    ``mass_diagonal``: work space of length n when the constant mass matrix is
+    diagonal (it receives the diagonal), else ``None``. ``cheap_first``: start
+    each step with the constant-mass iteration (see :func:`stage_solve`).
+    Returns (status, steps completed, rows saved, max residual, failing
+    increment).
     """
     n = q0.shape[0]
     r = b.shape[0]
     s = control_p.shape[0]
     u = implicit.shape[0]
     autonomous = traits[AUTONOMOUS] != 0
-    diagonal = traits[DIAGONAL_MASS] != 0
-    has_periodic = traits[HAS_PERIODIC] != 0
-    nnz = block_size(n, traits, pattern)
+    nnz = block_size(n, pattern)
     Q = np.zeros(n)
     zero = np.zeros(n)
     Lq = np.zeros(n)
@@ -312,7 +313,7 @@ def stage_form_loop(
     Fv = np.zeros(1)
     F = np.zeros((r, n))  # L_q + f at the quadrature points
     A = np.zeros((r, n))  # a(t) = L_v(t, q, 0) at the quadrature points
-    K = new_jacobian(u, n, traits)
+    K = new_jacobian(u, n, traits, pattern)
     R = np.zeros(u * n)
     piv = np.zeros(u * n, dtype=np.int64)
     x = np.zeros(n)
@@ -327,23 +328,23 @@ def stage_form_loop(
     # M is only divided by: no n x n storage, no LU)
     point_hessian(fn, t0, q0, zero, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
     M = Lvv.copy()
-    mass_diagonal = diagonal_of(M, n, traits, pattern)
-    KM = new_jacobian(1, 0 if diagonal else n, traits)
-    pivM = np.zeros(0 if diagonal else n, dtype=np.int64)
+    KM = new_jacobian(1, 0 if mass_diagonal is not None else n, traits, pattern)
+    pivM = np.zeros(0 if mass_diagonal is not None else n, dtype=np.int64)
     dp = np.zeros(n)  # the step's momentum change
     qk = q0.copy()
     q_lost = np.zeros(n)
     p_lost = np.zeros(n)
     turns = np.zeros(n)
-    if has_periodic:
+    if periodic is not None:
         wrap_angles(qk, q_lost, turns, periodic)
     pk = p0.copy()
     saved = save_row(0, t0, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic)
-    if diagonal:
+    if mass_diagonal is not None:
+        diagonal_of(M, n, traits, pattern, mass_diagonal)
         regular = np.all(mass_diagonal != 0.0)
     else:
-        add_block(KM, 0, 1, 1, n, 1.0, M, 0.0, Lqq, 0.0, 0.0, Lqv, Fv, traits, pattern)
-        regular = factor_jacobian(KM, pivM, 1, traits)
+        add_block(KM, 0, 1, 1, n, 1.0, M, 0.0, Lqq, 0.0, 0.0, Lqv, Fv, traits, pattern, None)
+        regular = factor_jacobian(KM, pivM, 1, traits, pattern)
     if not regular:
         return STATUS_SINGULAR, 0, saved, 0.0, np.inf
     for il in range(u):
@@ -424,6 +425,7 @@ def stage_form_loop(
             status = finish_step(
                 fn,
                 traits,
+                pattern,
                 tk,
                 h,
                 qk,
@@ -465,7 +467,7 @@ def stage_form_loop(
                 F[0, a] = F[r - 1, a]
             have_start_force = True
         # adds C[s - 1], the last row: C^s
-        advance_position(qk, q_lost, C, turns, periodic, has_periodic)
+        advance_position(qk, q_lost, C, turns, periodic)
         # next guess: this step's polynomial at the next step's implicit points
         for il in range(u):
             for a in range(n):
@@ -485,6 +487,7 @@ def stage_form_loop(
 def finish_step(
     fn,
     traits,
+    pattern,
     tk,
     h,
     qk,
@@ -534,7 +537,7 @@ def finish_step(
                 acc += control_force[mu, j] * F[j, a]
             acc = h * control_p[mu] * pk[a] + control_gauge[mu, a] + h2 * acc
             x[a] = acc
-        solve_mass(KM, pivM, mass_diagonal, x, traits)
+        solve_mass(KM, pivM, mass_diagonal, x, traits, pattern)
         for a in range(n):
             C[mu, a] = x[a]
     for jr in range(rest.shape[0]):
