@@ -7,6 +7,7 @@ read at call time)::
     loops/<numba>-<python>-<source hash>/    numba's cache of the time loops (once per machine)
     points/gvi_<key>.py                      one system's point functions (generated source)
     points/__pycache__/                      numba's cache of their compiled C functions
+                                             (here even when NUMBA_CACHE_DIR is set)
 
 The loops' folder is named after a hash of their sources, so an edited or
 upgraded package compiles them afresh; a system's entry is named after a hash

@@ -63,7 +63,7 @@ time :math:`t_1` of a one-step call (the fixed cost of a call) plus :math:`N - 1
 times the measured time per step :math:`\tau`, timed at the candidate's own
 step size over :math:`\min(N, 2000)` steps (minimum of five rounds that
 interleave the candidates, after the pilots, so that compilation is never timed;
-the kernel is compiled once per system, whatever the method or step size). On a
+nothing is compiled again, whatever the method or step size). On a
 loaded machine this is the uncontended time: long runs take longer than
 predicted, for every candidate alike.
 

@@ -46,8 +46,9 @@ class Integrator:
     method : Galerkin, optional
         Defaults to ``Galerkin(2)`` (order 4).
     backend : {"auto", "numba", "numpy"}
-        ``"numba"`` runs the whole time loop in generated, compiled code
-        (compiled once per system, cached on disk); ``"numpy"`` is the slow,
+        ``"numba"`` runs the whole time loop in compiled code (the loops
+        compiled once per machine, the system's point functions once per system,
+        both cached on disk); ``"numpy"`` is the slow,
         independent reference. ``"auto"`` picks numba when available.
     tol : float
         Relative Newton increment tolerance; below it the iteration continues
@@ -214,12 +215,15 @@ class Integrator:
                 "point_constraint_rate",
                 "point_constraint_hessian",
             )
-        fn = self._points.addresses(names)
-        traits = np.zeros(N_TRAITS, dtype=np.int64)
+        # tuples of ints, not arrays: passed by value into the loops' inlined helpers,
+        # where every array argument costs an atomic reference count pair per call
+        fn = tuple(int(address) for address in self._points.addresses(names))
+        traits = [0] * N_TRAITS
         traits[BAND] = spec.half_bandwidth if spec.banded else -1
-        traits[HAS_LQV] = spec.has_Lqv
-        traits[HAS_FV] = spec.has_fv
-        traits[AUTONOMOUS] = spec.autonomous
+        traits[HAS_LQV] = int(spec.has_Lqv)
+        traits[HAS_FV] = int(spec.has_fv)
+        traits[AUTONOMOUS] = int(spec.autonomous)
+        traits = tuple(traits)
         # banded storage is a switch (loops.traits): the pattern, or None for dense storage
         pattern = None
         if spec.banded:

@@ -115,6 +115,8 @@ class PointFunctions:
         """
         from numba import cfunc
 
+        from ..loops import _jit  # noqa: F401 - numba's cache locator of the point functions
+
         signatures = _c_signatures()
         with _LOCK:
             for name in names:

@@ -28,7 +28,7 @@ from numba.core import caching
 
 from ..cache import cache_root, discard_unreadable
 
-__all__ = ["LoopCacheLocator", "driver", "kernel", "loop_cache_dir"]
+__all__ = ["LoopCacheLocator", "PointCacheLocator", "driver", "kernel", "loop_cache_dir"]
 
 _PACKAGE = Path(__file__).resolve().parent.parent
 # every source a compiled loop is made of
@@ -92,16 +92,33 @@ class LoopCacheLocator(caching._CacheLocator):
         return locator
 
 
-def _register_locator() -> None:
+class PointCacheLocator(caching.InTreeCacheLocator):
+    """numba cache locator for the point functions of :mod:`galerkin_vi.codegen.compiled`.
+
+    Their compiled code stays beside their source, in ``points/__pycache__`` under
+    the cache root, even when ``NUMBA_CACHE_DIR`` is set: one folder to clear.
+    """
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        path = Path(py_file)
+        if path.parent.name != "points" or not path.name.startswith("gvi_"):
+            return None
+        return super().from_function(py_func, py_file)
+
+
+def _register_locators() -> None:
     # numba 0.68 renamed _CacheImpl to CacheImpl; without either, numba's own
     # locators cache the loops beside their sources (staleness by file date)
     impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
     classes = getattr(impl, "_locator_classes", None)
-    if isinstance(classes, list) and LoopCacheLocator not in classes:
-        classes.insert(0, LoopCacheLocator)
+    if isinstance(classes, list):
+        for locator in (PointCacheLocator, LoopCacheLocator):
+            if locator not in classes:
+                classes.insert(0, locator)
 
 
-_register_locator()
+_register_locators()
 # a truncated index or data file (a killed writer, a full disk) would make numba
 # raise instead of compiling again
 discard_unreadable(loop_cache_dir())

@@ -18,43 +18,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import driver, kernel
+from ._jit import driver
 from .common import STATUS_NONFINITE, STATUS_OK, save_row, wrap_angles
 from .point import point_gradient
 
 __all__ = ["explicit_loop"]
-
-
-@kernel
-def _velocity_step(qk, q_lost, rhs, Minv, h, periodic):
-    """q += h M^{-1} rhs, compensated when angles are to be wrapped exactly."""
-    n = qk.shape[0]
-    for a in range(n):
-        acc = 0.0
-        for b in range(n):
-            acc += Minv[a, b] * rhs[b]
-        if periodic is not None:
-            y = h * acc - q_lost[a]
-            total = qk[a] + y
-            q_lost[a] = (total - qk[a]) - y
-            qk[a] = total
-        else:
-            qk[a] += h * acc
-
-
-@kernel
-def _diagonal_velocity_step(qk, q_lost, rhs, Minv_diagonal, h, periodic):
-    """As :func:`_velocity_step` for a diagonal M: n, not n^2, per step."""
-    n = qk.shape[0]
-    for a in range(n):
-        acc = Minv_diagonal[a] * rhs[a]
-        if periodic is not None:
-            y = h * acc - q_lost[a]
-            total = qk[a] + y
-            q_lost[a] = (total - qk[a]) - y
-            qk[a] = total
-        else:
-            qk[a] += h * acc
 
 
 @driver
@@ -119,10 +87,24 @@ def explicit_loop(
             lost_before[a] = q_lost[a]
             turns_before[a] = turns[a]
             rhs[a] = pk[a] + 0.5 * h * lq[a] - 0.5 * (a0[a] + a1[a])
-        if Minv_diagonal is None:
-            _velocity_step(qk, q_lost, rhs, Minv, h, periodic)
-        else:
-            _diagonal_velocity_step(qk, q_lost, rhs, Minv_diagonal, h, periodic)
+        # q += h M^{-1} rhs, written out here: an inlined helper taking these arrays
+        # cost the Kepler problem 45 % per step (24 -> 36 ns: an atomic reference
+        # count increment and decrement per array and call)
+        for a in range(n):
+            if Minv_diagonal is None:
+                acc = 0.0
+                for b in range(n):
+                    acc += Minv[a, b] * rhs[b]
+            else:
+                acc = Minv_diagonal[a] * rhs[a]
+            if periodic is None:
+                qk[a] += h * acc
+            else:
+                # compensated, so that whole turns can be removed exactly
+                y = h * acc - q_lost[a]
+                total = qk[a] + y
+                q_lost[a] = (total - qk[a]) - y
+                qk[a] = total
         if periodic is not None:
             wrap_angles(qk, q_lost, turns, periodic)
         point_gradient(fn, tk1, qk, zero, prm, lq_next, a1)

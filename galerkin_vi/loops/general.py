@@ -166,6 +166,7 @@ def solve_stages(
     Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = work
     s1, n = C.shape
     s = s1 - 1
+    banded = pattern is not None
     previous = np.inf
     residual = np.inf
     frozen = False
@@ -186,7 +187,7 @@ def solve_stages(
         for nu in range(s):
             for a in range(n):
                 val = G[nu, a] + (pk[a] if nu == 0 else 0.0)
-                R[unknown(nu, a, s, n, pattern)] = -val
+                R[unknown(nu, a, s, n, banded)] = -val
                 if not abs(val) <= residual:  # also catches NaN
                     residual = abs(val)
         if not residual < 1e300:
@@ -198,7 +199,7 @@ def solve_stages(
         size = 0.0
         for nu in range(1, s1):
             for a in range(n):
-                delta = R[unknown(nu - 1, a, s, n, pattern)]
+                delta = R[unknown(nu - 1, a, s, n, banded)]
                 C[nu, a] += delta
                 if abs(delta) > increment:
                     increment = abs(delta)

@@ -52,13 +52,16 @@ def band_half_width(s, band):
 
 
 @kernel
-def unknown(nu, a, s, n, pattern):
+def unknown(nu, a, s, n, banded):
     """Position of coordinate a of control point nu (0-based among the unknowns).
 
     Node-major (nu n + a) for dense storage; coordinate-major (a s + nu) for
     banded storage, which keeps coupled coordinates' unknowns close together.
     """
-    if pattern is not None:
+    # ``banded`` is ``pattern is not None`` in the caller, a constant of each compiled
+    # variant: a bool, not the pattern itself, because every array passed into an
+    # inlined helper costs an atomic reference count increment and decrement
+    if banded:
         return a * s + nu
     return nu * n + a
 

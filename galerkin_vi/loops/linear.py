@@ -59,6 +59,7 @@ def linear_loop(
     Returns (status, steps completed, rows saved).
     """
     n = q0.shape[0]
+    banded = pattern is not None
     # the Jacobian is assembled once: the couplings are run-time flags here, not variants
     couplings = (traits[HAS_LQV] != 0, traits[HAS_FV] != 0)
     s1 = d.shape[0]
@@ -90,11 +91,11 @@ def linear_loop(
         assemble_gradient(fn, tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
         for nu in range(s):
             for a in range(n):
-                R[unknown(nu, a, s, n, pattern)] = -(G[nu, a] + (pk[a] if nu == 0 else 0.0))
+                R[unknown(nu, a, s, n, banded)] = -(G[nu, a] + (pk[a] if nu == 0 else 0.0))
         solve_jacobian(K, piv, s, R, traits, pattern)
         for nu in range(1, s1):
             for a in range(n):
-                C[nu, a] += R[unknown(nu - 1, a, s, n, pattern)]
+                C[nu, a] += R[unknown(nu - 1, a, s, n, banded)]
         finite = momentum_increment(fn, tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, dp)
         for a in range(n):
             if not finite or not abs(C[s, a]) < 1e300:

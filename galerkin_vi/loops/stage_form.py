@@ -147,6 +147,7 @@ def stage_solve(
     Q, zero, Lq, Lv, Lqq, Lqv, Lvv, Fv, F, K, R, piv, x, mz = work
     u, n = Z.shape
     autonomous = traits[AUTONOMOUS] != 0
+    banded = pattern is not None
     previous = np.inf
     residual = np.inf
     frozen = False
@@ -200,7 +201,7 @@ def stage_solve(
                 for jl in range(u):
                     acc += h2 * force_table[il, implicit[jl]] * F[implicit[jl], a]
                 val = mz[a] - acc
-                R[unknown(il, a, u, n, pattern)] = -val
+                R[unknown(il, a, u, n, banded)] = -val
                 if not abs(val) <= residual:  # also catches NaN
                     residual = abs(val)
         if not residual < 1e300:
@@ -208,10 +209,10 @@ def stage_solve(
         if cheap:
             for il in range(u):
                 for a in range(n):
-                    x[a] = R[unknown(il, a, u, n, pattern)]
+                    x[a] = R[unknown(il, a, u, n, banded)]
                 solve_mass(KM, pivM, mass_diagonal, x, traits, pattern)
                 for a in range(n):
-                    R[unknown(il, a, u, n, pattern)] = x[a]
+                    R[unknown(il, a, u, n, banded)] = x[a]
         else:
             if full and not factor_jacobian(K, piv, u, traits, pattern):
                 return STATUS_SINGULAR, it, np.inf, residual, switched
@@ -220,7 +221,7 @@ def stage_solve(
         size = 0.0
         for il in range(u):
             for a in range(n):
-                delta = R[unknown(il, a, u, n, pattern)]
+                delta = R[unknown(il, a, u, n, banded)]
                 Z[il, a] += delta
                 if abs(delta) > increment:
                     increment = abs(delta)

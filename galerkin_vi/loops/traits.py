@@ -14,7 +14,7 @@ generated module is data, in two kinds:
   pendulum against the loops with these as run-time tests: 40 % per step
   (diagonal mass, stage form), 12 % (dense against banded storage), 25 %
   (angles and time, explicit loop), 10-20 % (couplings, general loop);
-- *traits*, an int64 vector with the slots below, and the angle mask
+- *traits*, a tuple of ints with the slots below, and the angle mask
   ``periodic`` of the implicit loops, tested once per block or per step, where
   a test costs nothing measurable; they add no compiled variants.
 
