@@ -37,3 +37,26 @@ __all__ = [
 ]
 
 __version__ = "0.1.0"
+
+
+def _prepare_compiled_backend() -> None:
+    """Pay numba's one-time start-up here, at import, not at the first integration.
+
+    Importing the loops (numba, their dispatchers, the cache locators) and numba's
+    own initialisation of its CPU target (typing registries, with scipy.linalg)
+    take about 0.4 s once per process; afterwards a cached system loads its loops
+    and point functions in milliseconds. Without numba, the NumPy backend remains.
+    """
+    try:
+        from numba.core.registry import cpu_target
+
+        from . import loops  # noqa: F401
+    except ImportError:
+        return
+    try:
+        cpu_target.target_context.refresh()
+    except Exception:  # noqa: BLE001 - numba's internals: an optimisation only
+        pass
+
+
+_prepare_compiled_backend()

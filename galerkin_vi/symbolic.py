@@ -27,6 +27,11 @@ from dataclasses import dataclass, replace
 
 import sympy as sp
 
+# SymPy imports these on its first differentiation (Derivative sorts its variables
+# with sympy.tensor.tensor, which pulls in sympy.combinatorics): 80 ms that would
+# otherwise land on the first system a process builds
+import sympy.tensor.tensor  # noqa: E402, F401  isort: skip
+
 __all__ = [
     "ConstraintPieces",
     "constraint_pieces",
