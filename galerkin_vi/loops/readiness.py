@@ -79,7 +79,7 @@ def ensure_loops() -> None:
     if loops_ready() or os.environ.get("GALERKIN_VI_WARMUP_CHILD"):
         return
     sys.stderr.write(
-        "galerkin_vi: compiling the time loops once for this machine (under a minute; "
+        "galerkin_vi: compiling the time loops once for this machine (about a minute; "
         "`galerkin-vi warmup` does this ahead of use)...\n"
     )
     seconds = compile_all()
