@@ -28,7 +28,14 @@ from numba.core import caching
 
 from ..cache import cache_root, discard_unreadable
 
-__all__ = ["LoopCacheLocator", "PointCacheLocator", "driver", "kernel", "loop_cache_dir"]
+__all__ = [
+    "LoopCacheLocator",
+    "PointCacheLocator",
+    "driver",
+    "kernel",
+    "loop_cache_dir",
+    "scalar",
+]
 
 _PACKAGE = Path(__file__).resolve().parent.parent
 # every source a compiled loop is made of
@@ -126,4 +133,7 @@ discard_unreadable(loop_cache_dir())
 # numba's NumPy error model: a division by zero gives inf or NaN, which the loops
 # report as a failed step with the partial trajectory, instead of raising out of them
 kernel = njit(inline="always", error_model="numpy", cache=False)
+# helpers of scalars only: ordinary calls, which LLVM inlines (no reference counts to
+# pay), so that numba's IR inliner does not copy them into every call site
+scalar = njit(error_model="numpy", cache=False)
 driver = njit(cache=True, error_model="numpy", nogil=True)

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import newton
-from ._jit import kernel
+from ._jit import kernel, scalar
 from .traits import BAND
 
 __all__ = [
@@ -38,20 +38,20 @@ __all__ = [
 
 CONTINUE = newton.CONTINUE
 CONVERGED = newton.CONVERGED
-newton_status = kernel(newton.newton_status)
+newton_status = scalar(newton.newton_status)
 lu_factor_inplace = kernel(newton.lu_factor_inplace)
 lu_solve_inplace = kernel(newton.lu_solve_inplace)
 band_lu_factor = kernel(newton.band_lu_factor)
 band_lu_solve = kernel(newton.band_lu_solve)
 
 
-@kernel
+@scalar
 def band_half_width(s, band):
     """Half-bandwidth of the stage Jacobian ordered coordinate-major, (w + 1) s - 1."""
     return (band + 1) * s - 1
 
 
-@kernel
+@scalar
 def unknown(nu, a, s, n, banded):
     """Position of coordinate a of control point nu (0-based among the unknowns).
 
