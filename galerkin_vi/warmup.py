@@ -90,7 +90,7 @@ def _runs():
 
 #: compile seconds of each run on 2 shared cores (numba 0.68), in the order of
 #: :func:`_runs`: the parallel groups are balanced by them
-RUN_SECONDS = (14, 14, 14, 14, 8, 8, 8, 8, 5, 5, 12, 1.3, 1.3, 1.3, 1.3, 1.3, 1.3, 1.3, 1.3)
+RUN_SECONDS = (11, 10, 13, 13, 7, 8, 9, 10, 5, 5, 11, 1, 1, 1, 0.5, 1, 0.5, 1.5, 1)
 
 
 def _group(index: int, count: int) -> list[int]:

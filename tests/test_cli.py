@@ -147,3 +147,17 @@ def test_bench_needs_a_model(capsys):
     assert "--problem MODULE:ATTR" in capsys.readouterr().err
     assert cli.main(["bench", "--problem", "no_such_module_xyz:thing"]) == 2
     assert "cannot import" in capsys.readouterr().err
+
+
+def test_warmup_compiles_or_loads_every_loop_and_says_where(capsys):
+    from galerkin_vi.loops import loop_cache_dir
+    from galerkin_vi.loops.readiness import MARKER
+    from galerkin_vi.warmup import _runs
+
+    assert cli.main(["warmup"]) == 0
+    out = capsys.readouterr().out
+    assert str(loop_cache_dir()) in out
+    # one line per variant (loaded from the cache here: the session compiled them)
+    assert sum(label in out for label, *_ in _runs()) == len(_runs())
+    assert "done in" in out
+    assert (loop_cache_dir() / MARKER).exists()

@@ -176,3 +176,38 @@ def test_point_functions_by_address_match_the_numpy_reference(path):
     )
     np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-13)
     np.testing.assert_allclose(fast.p, slow.p, rtol=0, atol=1e-13)
+
+
+def test_first_use_on_a_machine_says_what_it_compiles(monkeypatch, capsys):
+    from galerkin_vi.loops import readiness
+
+    calls = []
+    monkeypatch.setattr(readiness, "_ENSURED", False)
+    monkeypatch.setattr(readiness, "loops_ready", lambda: False)
+    monkeypatch.setattr(readiness, "compile_all", lambda: calls.append(1) or 42.0)
+    monkeypatch.delenv("GALERKIN_VI_WARMUP_CHILD", raising=False)
+    readiness.ensure_loops()
+    readiness.ensure_loops()  # once per process
+    err = capsys.readouterr().err
+    assert calls == [1]
+    assert "compiling the time loops once for this machine" in err
+    assert "galerkin-vi warmup" in err and "compiled in 42 s" in err
+
+
+_NUMBA_DIR_SCRIPT = textwrap.dedent(
+    """
+    import sympy as sp
+    import galerkin_vi as gvi
+    q, v = sp.symbols("q v")
+    system = gvi.LagrangianSystem(v**2 / 2 + 0.375 * sp.cos(q) ** 3, [q], [v])
+    gvi.Integrator(system, gvi.Galerkin(2)).integrate([1.0], [0.0], h=0.1, n_steps=2)
+    """
+)
+
+
+def test_point_functions_stay_under_the_cache_root_with_numba_cache_dir(warm_cache):
+    numba_dir = warm_cache / "numba-elsewhere"
+    env = dict(os.environ, GALERKIN_VI_CACHE_DIR=str(warm_cache), NUMBA_CACHE_DIR=str(numba_dir))
+    subprocess.run([sys.executable, "-c", _NUMBA_DIR_SCRIPT], env=env, check=True)
+    assert list((warm_cache / "points" / "__pycache__").glob("gvi_*.nbi"))
+    assert not list(numba_dir.rglob("gvi_*.nbi"))  # one folder to clear
