@@ -8,6 +8,8 @@ read at call time)::
     points/gvi_<key>.py                      one system's point functions (generated source)
     points/__pycache__/                      numba's cache of their compiled C functions
                                              (here even when NUMBA_CACHE_DIR is set)
+    systems/<key>.pickle                     a system's symbolic analysis (derivatives,
+                                             structure), keyed by its input expressions
 
 The loops' folder is named after a hash of their sources, so an edited or
 upgraded package compiles them afresh; a system's entry is named after a hash
@@ -24,7 +26,7 @@ from pathlib import Path
 
 import platformdirs
 
-__all__ = ["atomic_write", "cache_root", "discard_unreadable"]
+__all__ = ["atomic_write", "atomic_write_bytes", "cache_root", "discard_unreadable"]
 
 
 def cache_root() -> Path:
@@ -60,6 +62,20 @@ def atomic_write(path: Path, text: str) -> bool:
                 tmp = ""
                 return True
             return False
+    finally:
+        if tmp:
+            os.unlink(tmp)
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Install ``data`` at ``path`` through a private temporary file and a rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.stem + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+        tmp = ""
     finally:
         if tmp:
             os.unlink(tmp)

@@ -183,10 +183,26 @@ class Integrator:
         return codegen.kernel_spec(self.system)
 
     @cached_property
+    def _summary(self) -> codegen.SpecSummary:
+        """What the loops need of the spec, kept with the system's analysis cache.
+
+        A system seen by an earlier process then derives no spec and hashes no
+        expressions (for a 60-mass chain, 0.3 s of SymPy printing).
+        """
+        from .codegen.compiled import numba_version, point_key
+
+        stored = self.system.recalled("point_summary")
+        if stored is not None and stored[0] == numba_version():
+            return stored[1]
+        summary = codegen.summarize(self._spec, point_key(self._spec))
+        self.system.remember("point_summary", (numba_version(), summary))
+        return summary
+
+    @cached_property
     def _points(self):
         from .codegen.compiled import load_point_functions
 
-        return load_point_functions(self._spec)
+        return load_point_functions(lambda: self._spec, self._summary.key)
 
     @property
     def source(self) -> str:
@@ -204,7 +220,7 @@ class Integrator:
         """The system's part of every loop's arguments: (fn, traits, pattern, periodic)."""
         from .loops.traits import AUTONOMOUS, BAND, HAS_FV, HAS_LQV, N_TRAITS
 
-        spec = self._spec
+        spec = self._summary
         names = ("point_gradient",)
         if self.kernel_path != "explicit":
             names += ("point_hessian",)
@@ -219,7 +235,7 @@ class Integrator:
         # where every array argument costs an atomic reference count pair per call
         fn = tuple(int(address) for address in self._points.addresses(names))
         traits = [0] * N_TRAITS
-        traits[BAND] = spec.half_bandwidth if spec.banded else -1
+        traits[BAND] = int(spec.half_bandwidth) if spec.banded else -1
         traits[HAS_LQV] = int(spec.has_Lqv)
         traits[HAS_FV] = int(spec.has_fv)
         traits[AUTONOMOUS] = int(spec.autonomous)
@@ -390,11 +406,11 @@ class Integrator:
         model = self._loop_arguments()
         newton = (self.tol, self.maxiter)
         if path == "explicit":
-            return run_explicit(system, self._spec, model, run, out.arrays)
+            return run_explicit(system, self._summary, model, run, out.arrays)
         if path == "separable":
             st = separable_tables(self.method)
             # a diagonal M is a compiled variant of its own (None: a full M)
-            diagonal = np.zeros(system.n) if self._spec.diagonal_mass else None
+            diagonal = np.zeros(system.n) if self._summary.diagonal_mass else None
             return loops.stage_form_loop(
                 *model, diagonal, *run, tb.b, tb.c, *st.loop_arguments, *newton,
                 self.uses_constant_mass, *out.arrays, *counters,
@@ -410,7 +426,7 @@ class Integrator:
                 *model, system.m, *run, *method, *newton, *out.arrays, *counters
             )
         # a switch (loops.traits): None compiles the L_qv and f_v terms out
-        spec = self._spec
+        spec = self._summary
         couplings = (spec.has_Lqv, spec.has_fv) if spec.has_Lqv or spec.has_fv else None
         return loops.general_loop(*model, couplings, *run, *method, *newton, *out.arrays, *counters)
 

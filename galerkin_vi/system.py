@@ -12,6 +12,7 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 from sympy.core.function import AppliedUndef
 
+from .analysis_cache import analysis_key, load_analysis, store_analysis
 from .errors import DegenerateLagrangianError
 from .numeric import FlatEvaluator
 from .symbolic import (
@@ -170,6 +171,42 @@ class LagrangianSystem:
         self.param_defaults = np.array([float(params[s]) for s in self.params], dtype=float)
         self.forces = None if force_list is None else tuple(force_list)
         self.constraints = None if constraint_list is None else tuple(constraint_list)
+        key = analysis_key(
+            L, self.q, self.v, t, self.params, tuple(self.param_defaults), self.forces,
+            self.constraints,
+        )  # fmt: skip
+        self._analysis_key = key
+        analysis = load_analysis(key)
+        if analysis is not None:
+            # derived and checked before for exactly these inputs
+            self._analysis = analysis
+            self.pieces = analysis["pieces"]
+            self.structure = analysis["structure"]
+            self.periodic = analysis["periodic"]
+            self.__dict__["constraint_pieces"] = analysis["constraint_pieces"]
+            return
+        self._analyse(L, q_list, v_list, t, force_list, constraint_list)
+        self._analysis = {
+            "pieces": self.pieces,
+            "structure": self.structure,
+            "periodic": self.periodic,
+            "constraint_pieces": self.constraint_pieces,
+        }
+        store_analysis(key, self._analysis)
+
+    def recalled(self, name: str):
+        """A value stored with :meth:`remember` for these inputs (this or an earlier
+        process), or None."""
+        return self._analysis.get(name)
+
+    def remember(self, name: str, value) -> None:
+        """Keep ``value`` (plain, picklable data derived from this system) in its
+        analysis cache entry, for later processes."""
+        self._analysis[name] = value
+        store_analysis(self._analysis_key, self._analysis)
+
+    def _analyse(self, L, q_list, v_list, t, force_list, constraint_list) -> None:
+        """Differentiate, check and analyse the model (what the analysis cache stores)."""
         try:
             pieces = pointwise_pieces(L, q_list, v_list, force_list)
         except (TypeError, ValueError) as exc:

@@ -20,9 +20,11 @@ from .source import render_module
 from .spec import (
     GENERATOR_VERSION,
     KernelSpec,
+    SpecSummary,
     kernel_spec,
     signature,
     sparsity_pattern,
+    summarize,
     use_banded,
 )
 
@@ -30,6 +32,8 @@ __all__ = [
     "GENERATOR_VERSION",
     "KernelPrinter",
     "KernelSpec",
+    "SpecSummary",
+    "summarize",
     "kernel_spec",
     "render_module",
     "signature",

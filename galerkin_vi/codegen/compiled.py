@@ -19,6 +19,7 @@ from __future__ import annotations
 import importlib.util
 import sys
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -35,6 +36,7 @@ __all__ = [
     "discard_unreadable_numba_cache",
     "entry_path",
     "load_point_functions",
+    "point_key",
     "numba_version",
     "read_entry",
 ]
@@ -145,9 +147,23 @@ def _body_address(compiled) -> int:
     return compiled._library.get_pointer_to_function(name[len(prefix) :])
 
 
-def load_point_functions(spec: KernelSpec) -> PointFunctions:
-    """Generate (or find in the cache) and import the point functions of ``spec``."""
-    key = signature(spec, "numba", numba_version() or "none")
+def point_key(spec: KernelSpec) -> str:
+    """The cache key of ``spec``'s point functions for this numba."""
+    return signature(spec, "numba", numba_version() or "none")
+
+
+def load_point_functions(
+    spec: KernelSpec | Callable[[], KernelSpec], key: str | None = None
+) -> PointFunctions:
+    """Generate (or find in the cache) and import the point functions of ``spec``.
+
+    ``spec`` may be a function that builds it, called only when the module is
+    not in the cache yet; ``key`` (from :func:`point_key`) must then be given.
+    """
+    if key is None:
+        if callable(spec):
+            raise ValueError("give the key when the spec is built on demand")
+        key = point_key(spec)
     with _LOCK:
         loaded = _LOADED.get(key)
         if loaded is None:
@@ -155,11 +171,11 @@ def load_point_functions(spec: KernelSpec) -> PointFunctions:
     return loaded
 
 
-def _load_module(spec: KernelSpec, key: str) -> ModuleType:
+def _load_module(spec, key: str) -> ModuleType:
     module_name = f"galerkin_vi_points_{key[:32]}"
     cached = read_entry(key) is not None
     if not cached:
-        atomic_write(entry_path(key), render_module(spec, key))
+        atomic_write(entry_path(key), render_module(_built(spec), key))
     try:
         return _import_entry(key, module_name)
     except (SyntaxError, ValueError):
@@ -168,8 +184,12 @@ def _load_module(spec: KernelSpec, key: str) -> ModuleType:
     # an entry with intact key lines but damaged in between (bit rot, a foreign
     # edit): rendered afresh and imported once more
     entry_path(key).unlink(missing_ok=True)
-    atomic_write(entry_path(key), render_module(spec, key))
+    atomic_write(entry_path(key), render_module(_built(spec), key))
     return _import_entry(key, module_name)
+
+
+def _built(spec) -> KernelSpec:
+    return spec() if callable(spec) else spec
 
 
 def discard_unreadable_numba_cache(module_path: Path) -> list[Path]:

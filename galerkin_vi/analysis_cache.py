@@ -1,0 +1,74 @@
+"""On-disk cache of a system's symbolic analysis, keyed by the user's input.
+
+Building a :class:`~galerkin_vi.system.LagrangianSystem` differentiates ``L``,
+the forces and the constraints with SymPy and analyses the result (structure,
+angles, printability, regularity): 20-500 ms for the models of the problem
+library, most of a cached system's start-up in a new process. The result is
+plain data, pickled under ``<cache root>/systems/`` (3 ms to load for a
+two-coordinate model, against 80 ms to derive).
+
+The key hashes the inputs as SymPy writes them (``srepr``: symbol names and
+assumptions included, since the pieces hold the user's symbols), the default
+parameter values (the regularity check samples with them), the sources of the
+analysis (:mod:`galerkin_vi.symbolic`, :mod:`galerkin_vi.system`) and the
+SymPy and Python versions: an edited analysis or a new SymPy starts afresh.
+An unreadable entry is ignored and written again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import pickle
+import sys
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import sympy as sp
+
+from .cache import atomic_write_bytes, cache_root
+
+__all__ = ["analysis_key", "load_analysis", "store_analysis"]
+
+_SOURCES = ("symbolic.py", "system.py", "analysis_cache.py")
+
+
+@cache
+def _sources_hash() -> str:
+    h = hashlib.sha256()
+    package = Path(__file__).resolve().parent
+    for name in _SOURCES:
+        h.update((package / name).read_bytes())
+    return h.hexdigest()
+
+
+def analysis_key(*parts: Any) -> str:
+    """SHA-256 of ``parts`` (SymPy objects by ``srepr``, others by ``repr``)."""
+    h = hashlib.sha256()
+    for part in (_sources_hash(), sp.__version__, sys.version, *parts):
+        text = sp.srepr(part) if isinstance(part, sp.Basic) else repr(part)
+        h.update(text.encode())
+        h.update(b"\0")
+    return h.hexdigest()
+
+
+def _path(key: str) -> Path:
+    return cache_root() / "systems" / f"{key[:40]}.pickle"
+
+
+def load_analysis(key: str) -> dict | None:
+    """The stored analysis for ``key``, or None (absent, unreadable, or another key's)."""
+    try:
+        data = _path(key).read_bytes()
+        stored_key, analysis = pickle.loads(data)
+    except Exception:  # noqa: BLE001 - absent or damaged: derive afresh
+        return None
+    return analysis if stored_key == key else None
+
+
+def store_analysis(key: str, analysis: dict) -> None:
+    """Store ``analysis`` for ``key`` (atomic; a failure to write only costs speed)."""
+    try:
+        atomic_write_bytes(_path(key), pickle.dumps((key, analysis)))
+    except (OSError, pickle.PicklingError, TypeError, AttributeError, RecursionError):
+        pass

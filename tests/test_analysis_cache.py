@@ -1,0 +1,86 @@
+"""The on-disk cache of a system's symbolic analysis (galerkin_vi.analysis_cache)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import galerkin_vi as gvi
+from galerkin_vi import analysis_cache, codegen
+from galerkin_vi import system as system_module
+
+q, v, k = sp.symbols("q v k")
+
+
+@pytest.fixture(autouse=True)
+def cache_dir(tmp_path, monkeypatch):
+    monkeypatch.setenv("GALERKIN_VI_CACHE_DIR", str(tmp_path))
+    return tmp_path
+
+
+def _model(stiffness=2.0, **kw):
+    return gvi.LagrangianSystem(
+        v**2 / 2 - k * q**4 / 4 + sp.cos(q), [q], [v], params={k: stiffness}, **kw
+    )
+
+
+def _no_differentiation(monkeypatch):
+    def refuse(*args, **kwargs):
+        raise AssertionError("differentiated again")
+
+    monkeypatch.setattr(system_module, "pointwise_pieces", refuse)
+
+
+def test_a_second_build_loads_the_analysis_instead_of_deriving_it(monkeypatch, cache_dir):
+    first = _model()
+    assert list((cache_dir / "systems").glob("*.pickle"))
+    _no_differentiation(monkeypatch)
+    again = _model()
+    assert again.pieces == first.pieces
+    assert again.structure == first.structure and again.periodic == first.periodic
+    x = np.array([[0.3], [1.1]])
+    w = np.array([[0.2], [-0.4]])
+    np.testing.assert_array_equal(again.hamiltonian(x, w), first.hamiltonian(x, w))
+
+
+def test_the_key_follows_every_input(monkeypatch):
+    _model()
+    _no_differentiation(monkeypatch)
+    for other in (
+        lambda: _model(stiffness=3.0),  # regularity is checked with the default values
+        lambda: _model(forces=[-v / 10]),
+        lambda: gvi.LagrangianSystem(v**2 / 2 - k * q**4 / 4, [q], [v], params={k: 2.0}),
+    ):
+        with pytest.raises(AssertionError, match="differentiated again"):
+            other()
+
+
+def test_a_damaged_entry_is_derived_and_written_again(cache_dir):
+    first = _model()
+    (entry,) = (cache_dir / "systems").glob("*.pickle")
+    entry.write_bytes(b"\x80\x04 not a pickle")
+    again = _model()
+    assert again.pieces == first.pieces
+    assert analysis_cache.load_analysis(again._analysis_key) is not None
+
+
+def test_a_rejected_model_is_not_cached(cache_dir):
+    for _ in range(2):  # rejected both times: nothing was stored in between
+        with pytest.raises(gvi.DegenerateLagrangianError):
+            gvi.LagrangianSystem(v + sp.cos(q), [q], [v])
+    assert not list((cache_dir / "systems").glob("*.pickle"))
+
+
+def test_a_cached_system_integrates_without_deriving_its_spec(monkeypatch):
+    method = gvi.Galerkin(2)
+    reference = gvi.Integrator(_model(), method).integrate([0.5], [0.1], h=0.05, n_steps=20)
+    _no_differentiation(monkeypatch)
+
+    def refuse(system):
+        raise AssertionError("spec derived again")
+
+    monkeypatch.setattr(codegen, "kernel_spec", refuse)
+    traj = gvi.Integrator(_model(), method).integrate([0.5], [0.1], h=0.05, n_steps=20)
+    np.testing.assert_array_equal(traj.q, reference.q)
+    np.testing.assert_array_equal(traj.p, reference.p)
