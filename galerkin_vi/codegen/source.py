@@ -21,6 +21,7 @@ from __future__ import annotations
 import sympy as sp
 
 from ..printer import KernelPrinter
+from .repeats import Run, find_runs
 from .spec import KernelSpec
 
 __all__ = ["FUNCTIONS", "POINT_CHUNK", "render_module"]
@@ -82,16 +83,40 @@ def _function_body(
     return lines or ["    pass"]
 
 
+def _loop_body(runs: list[Run]) -> list[str]:
+    """Source lines of the loops over repeated entries (:mod:`.repeats`)."""
+    printer = KernelPrinter(ordered=False)
+    lines = []
+    for run in runs:
+        temporaries, (reduced,) = sp.cse(
+            [run.template], symbols=sp.numbered_symbols("_y"), optimizations=None
+        )
+        index = f"{run.stride} * _i + {run.offset}" if run.offset else f"{run.stride} * _i"
+        lines.append(f"    for _i in range({run.start}, {run.stop}):")
+        for symbol, rhs in temporaries:
+            lines += ["    " + line for line in _assignment(str(symbol), rhs, printer)]
+        lines += ["    " + line for line in _assignment(f"{run.array}[{index}]", reduced, printer)]
+    return lines
+
+
 def _point_function(
     name: str,
     entries: list[tuple[str, sp.Expr]],
     large: bool,
     returns: sp.Expr | None = None,
+    spec: KernelSpec | None = None,
 ) -> list[str]:
-    """Source lines of one point function, split into parts when ``large``."""
+    """Source lines of one point function, split into parts when ``large``.
+
+    In a large function, runs of entries that repeat one expression along the
+    coordinates become loops (:mod:`.repeats`), in a part of their own.
+    """
     params = FUNCTIONS[name]
     if not large:
         return ["", "", f"def {name}({params}):", *_function_body(entries, returns=returns)]
+    runs: list[Run] = []
+    if returns is None and spec is not None:
+        runs, entries = find_runs(entries, spec.n, spec.pattern if spec.banded else ())
     if returns is not None:
         terms = sp.Add.make_args(returns)
         pieces = [
@@ -101,6 +126,10 @@ def _point_function(
         pieces = [(entries[k : k + POINT_CHUNK], None) for k in range(0, len(entries), POINT_CHUNK)]
     lines: list[str] = []
     calls = []
+    if runs:
+        part = f"{name}_loops"
+        lines += ["", "", "@part", f"def {part}({params}):", *_loop_body(runs)]
+        calls.append(f"{part}({params})")
     for k, (chunk, partial) in enumerate(pieces):
         part = f"{name}_part{k}"
         lines += ["", "", "@part", f"def {part}({params}):"]
@@ -155,8 +184,8 @@ def render_module(spec: KernelSpec, key: str) -> str:
             'part = njit(cache=True, error_model="numpy")',
         ]
     body = [
-        *_point_function("point_gradient", list(spec.gradient_entries), large),
-        *_point_function("point_hessian", list(spec.hessian_entries), large),
+        *_point_function("point_gradient", list(spec.gradient_entries), large, spec=spec),
+        *_point_function("point_hessian", list(spec.hessian_entries), large, spec=spec),
         *_point_function("lagrangian", [], large, returns=spec.lagrangian),
         *_constraint_functions(spec),
     ]

@@ -34,7 +34,7 @@ __all__ = [
     "use_banded",
 ]
 
-GENERATOR_VERSION = "5"
+GENERATOR_VERSION = "6"
 
 
 @dataclass(frozen=True)
