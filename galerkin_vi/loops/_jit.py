@@ -126,6 +126,62 @@ def _register_locators() -> None:
 
 
 _register_locators()
+
+
+class _SharedMemoCopy:
+    """The ``copy`` module as numba's IR inliner sees it, with one memo per inlining.
+
+    ``InlineWorker.inline_ir`` deep-copies the callee's IR block by block, each
+    with a fresh memo, so every block drags along its own copy of the whole
+    variable scope that all blocks share: quadratic in the callee's size. Inside
+    one ``inline_ir`` call this module's ``deepcopy`` shares one memo, so the
+    scope is copied once and the copied blocks share it, as the original ones do.
+    Measured: compiling the stage form 10.5 -> 6.8 s, the general loop 7.1 -> 3.8 s.
+    """
+
+    def __init__(self, module, state):
+        self._module = module
+        self._state = state
+
+    def __getattr__(self, name):
+        return getattr(self._module, name)
+
+    def deepcopy(self, x, memo=None, _nil=()):
+        shared = getattr(self._state, "memo", None)
+        if memo is None and shared is not None:
+            memo = shared
+        return self._module.deepcopy(x, memo)
+
+
+def _share_inliner_memo() -> None:
+    """Install :class:`_SharedMemoCopy` in numba's inliner (skipped if its layout differs)."""
+    import copy
+    import threading
+
+    from numba.core import inline_closurecall
+
+    worker = getattr(inline_closurecall, "InlineWorker", None)
+    inline_ir = getattr(worker, "inline_ir", None)
+    if inline_ir is None or getattr(inline_ir, "_galerkin_vi", False):
+        return
+    if getattr(inline_closurecall, "copy", None) is not copy:
+        return
+    state = threading.local()
+    inline_closurecall.copy = _SharedMemoCopy(copy, state)
+
+    def shared_memo_inline_ir(self, *args, **kwargs):
+        outer = getattr(state, "memo", None)
+        state.memo = {}
+        try:
+            return inline_ir(self, *args, **kwargs)
+        finally:
+            state.memo = outer
+
+    shared_memo_inline_ir._galerkin_vi = True
+    worker.inline_ir = shared_memo_inline_ir
+
+
+_share_inliner_memo()
 # a truncated index or data file (a killed writer, a full disk) would make numba
 # raise instead of compiling again
 discard_unreadable(loop_cache_dir())
