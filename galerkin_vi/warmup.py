@@ -88,9 +88,29 @@ def _runs():
     ]
 
 
-#: compile seconds of each run on 2 shared cores (numba 0.68), in the order of
+#: compile seconds of each run on an idle 2-core machine (numba 0.68), in the order of
 #: :func:`_runs`: the parallel groups are balanced by them
-RUN_SECONDS = (11, 10, 13, 13, 7, 8, 9, 10, 5, 5, 11, 1, 1, 1, 0.5, 1, 0.5, 1.5, 1)
+RUN_SECONDS = (
+    7.0,
+    7.0,
+    9.1,
+    8.7,
+    4.2,
+    4.3,
+    4.7,
+    5.3,
+    3.7,
+    4.3,
+    7.6,
+    0.8,
+    0.5,
+    1.4,
+    0.5,
+    1.3,
+    0.5,
+    1.1,
+    0.5,
+)
 
 
 def _group(index: int, count: int) -> list[int]:
