@@ -146,7 +146,7 @@ class _SharedMemoCopy:
     def __getattr__(self, name):
         return getattr(self._module, name)
 
-    def deepcopy(self, x, memo=None, _nil=()):
+    def deepcopy(self, x, memo=None):
         shared = getattr(self._state, "memo", None)
         if memo is None and shared is not None:
             memo = shared
