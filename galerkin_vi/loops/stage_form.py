@@ -47,7 +47,7 @@ from .linalg import (
 from .point import point_gradient, point_hessian
 from .traits import AUTONOMOUS
 
-__all__ = ["finish_step", "stage_form_loop", "stage_solve"]
+__all__ = ["stage_form_loop"]
 
 # constant-mass iteration: switch to full Newton when an increment is more than
 # MASS_CONTRACTION * (number of unknowns) times the one before, capped at
@@ -71,18 +71,17 @@ def mass_times(M, mass_diagonal, x, out, traits, pattern):
     if mass_diagonal is not None:
         for a in range(n):
             out[a] = mass_diagonal[a] * x[a]
-        return
-    if pattern is not None:
+    elif pattern is not None:
         for a in range(n):
             out[a] = 0.0
         for k in range(pattern.shape[0]):
             out[pattern[k, 0]] += M[k] * x[pattern[k, 1]]
-        return
-    for a in range(n):
-        acc = 0.0
-        for cc in range(n):
-            acc += M[a * n + cc] * x[cc]
-        out[a] = acc
+    else:
+        for a in range(n):
+            acc = 0.0
+            for cc in range(n):
+                acc += M[a * n + cc] * x[cc]
+            out[a] = acc
 
 
 @kernel
@@ -91,8 +90,8 @@ def solve_mass(KM, pivM, mass_diagonal, x, traits, pattern):
     if mass_diagonal is not None:
         for a in range(x.shape[0]):
             x[a] /= mass_diagonal[a]
-        return
-    solve_jacobian(KM, pivM, 1, x, traits, pattern)
+    else:
+        solve_jacobian(KM, pivM, 1, x, traits, pattern)
 
 
 @kernel
@@ -103,158 +102,9 @@ def diagonal_of(M, n, traits, pattern, diagonal):
         for k in range(pattern.shape[0]):
             if pattern[k, 0] == pattern[k, 1]:
                 diagonal[pattern[k, 0]] = M[k]
-        return
-    for a in range(n):
-        diagonal[a] = M[a * n + a]
-
-
-@kernel
-def stage_solve(
-    fn,
-    traits,
-    pattern,
-    t0,
-    h,
-    qk,
-    Z,
-    offset,
-    prm,
-    c,
-    implicit,
-    force_table,
-    M,
-    KM,
-    pivM,
-    mass_diagonal,
-    tol,
-    maxiter,
-    work,
-    cheap,
-):
-    r"""Newton on the implicit stage increments Z (guess on entry, solution on exit).
-
-    ``offset[i]`` holds the known part :math:`h\hat c_i p_k + h\sum_j \hat Y_{ij}a_j
-    + h^2\sum_{j\ \mathrm{known}} \hat W_{ij}F_j` (the tables here carry the
-    factor :math:`\Phi` of the stage points). Three iterations share
-    :func:`newton_status`'s stopping rule: with ``cheap``, the iteration matrix
-    is the block-diagonal :math:`I \otimes M` (one solve with the constant
-    :math:`M` per stage, no Hessian), handing over to full Newton when it
-    contracts too slowly, fails, or has used half of ``maxiter``; full Newton;
-    and, as in :func:`solve_stages`, the LU factors frozen once an increment is
-    below ``FREEZE``. Returns (status, iterations, last increment, residual,
-    switched, whether F holds the forces at the returned Z).
-    """
-    Q, zero, Lq, Lv, Lqq, Lqv, Lvv, Fv, F, K, R, piv, x, mz = work
-    u, n = Z.shape
-    autonomous = traits[AUTONOMOUS] != 0
-    banded = pattern is not None
-    previous = np.inf
-    residual = np.inf
-    frozen = False
-    switched = False
-    contraction = min(MASS_CONTRACTION_MAX, MASS_CONTRACTION * u * n)
-    base = 0.0
-    for a in range(n):
-        base = max(base, abs(qk[a]))
-    h2 = h * h
-    for it in range(1, maxiter + 1):
-        full = not (cheap or frozen)
-        if full:
-            K[:, :] = 0.0
-        for jl in range(u):
-            j = implicit[jl]
-            for a in range(n):
-                Q[a] = qk[a] + Z[jl, a]
-            tj = 0.0 if autonomous else t0 + c[j] * h
-            if full:
-                point_hessian(fn, tj, Q, zero, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
-                for il in range(u):
-                    add_block(
-                        K,
-                        il,
-                        jl + 1,
-                        u,
-                        n,
-                        1.0 if il == jl else 0.0,
-                        M,
-                        -h2 * force_table[il, j],
-                        Lqq,
-                        0.0,
-                        0.0,
-                        Lqv,
-                        Fv,
-                        traits,
-                        pattern,
-                        None,
-                    )
-            else:
-                point_gradient(fn, tj, Q, zero, prm, Lq, Lv)
-            for a in range(n):
-                F[j, a] = Lq[a]
-        residual = 0.0
-        for il in range(u):
-            for a in range(n):
-                x[a] = Z[il, a]
-            mass_times(M, mass_diagonal, x, mz, traits, pattern)
-            for a in range(n):
-                acc = offset[il, a]
-                for jl in range(u):
-                    acc += h2 * force_table[il, implicit[jl]] * F[implicit[jl], a]
-                val = mz[a] - acc
-                R[unknown(il, a, u, n, banded)] = -val
-                if not abs(val) <= residual:  # also catches NaN
-                    residual = abs(val)
-        if not residual < 1e300:
-            return STATUS_NONFINITE, it, np.inf, residual, switched, False
-        if cheap:
-            for il in range(u):
-                for a in range(n):
-                    x[a] = R[unknown(il, a, u, n, banded)]
-                solve_mass(KM, pivM, mass_diagonal, x, traits, pattern)
-                for a in range(n):
-                    R[unknown(il, a, u, n, banded)] = x[a]
-        else:
-            if full and not factor_jacobian(K, piv, u, traits, pattern):
-                return STATUS_SINGULAR, it, np.inf, residual, switched, False
-            solve_jacobian(K, piv, u, R, traits, pattern)
-        increment = 0.0
-        size = 0.0
-        moved = False
-        for il in range(u):
-            for a in range(n):
-                delta = R[unknown(il, a, u, n, banded)]
-                updated = Z[il, a] + delta
-                if updated != Z[il, a]:
-                    moved = True
-                Z[il, a] = updated
-                if abs(delta) > increment:
-                    increment = abs(delta)
-                if abs(Z[il, a]) > size:
-                    size = abs(Z[il, a])
-        scale = 1.0 + max(size, base)
-        if cheap and it >= 2 and increment > contraction * previous and increment > tol * scale:
-            # too slow at this h (or diverging): exact Jacobian from here on
-            cheap = False
-            switched = True
-            previous = np.inf
-            continue
-        status = newton_status(increment, previous, scale, tol, it, maxiter)
-        if status == CONVERGED:
-            # F holds the forces at Z when the last update moved nothing and they came
-            # from point_gradient (the Hessian's CSE may round L_q differently)
-            return STATUS_OK, it, increment, residual, switched, not (moved or full)
-        if cheap and (status != CONTINUE or 2 * it >= maxiter):
-            # the cheap iteration leaves full Newton at least half of the iterations
-            cheap = False
-            switched = True
-            previous = np.inf
-            continue
-        if status != CONTINUE:
-            return STATUS_NEWTON_FAILED, it, increment, residual, switched, False
-        if not cheap and increment <= FREEZE * (1.0 + size):
-            frozen = True
-        previous = increment
-    return STATUS_NEWTON_FAILED, maxiter, previous, residual, switched, False
+    else:
+        for a in range(n):
+            diagonal[a] = M[a * n + a]
 
 
 @driver
@@ -284,7 +134,7 @@ def stage_form_loop(
     control_a,
     control_force,
     Phi1,
-    E,
+    X,
     reuse_endpoint,
     tol,
     maxiter,
@@ -296,19 +146,43 @@ def stage_form_loop(
     iterations_out,
     iteration_total,
 ):
-    """Run ``n_steps`` steps of the stage form from (q0, p0); as :func:`.general_loop`.
+    r"""Run ``n_steps`` steps of the stage form from (q0, p0); as :func:`.general_loop`.
 
     ``mass_diagonal``: work space of length n when the constant mass matrix is
     diagonal (it receives the diagonal), else ``None``. ``cheap_first``: start
-    each step with the constant-mass iteration (see :func:`stage_solve`).
-    Returns (status, steps completed, rows saved, max residual, failing
-    increment).
+    each step with the constant-mass iteration. ``X``: the forces of one step
+    extrapolated to the next step's implicit points
+    (``SeparableTables.force_extrapolation``), from which each step after the
+    first takes its first iterate. Returns (status, steps completed, rows saved,
+    max residual, failing increment).
+
+    **The iteration.** Unknowns are the stage increments :math:`Z_i` at the
+    implicit points. Three iterations share one stopping rule: with ``cheap``
+    the iteration matrix is the block-diagonal :math:`I \otimes M` (fixed-point
+    iteration on :math:`M Z = \text{offset} + h^2 \hat W F(Z)`: one gradient per
+    implicit point and one solve with the constant :math:`M`, a division when it
+    is diagonal), handing over to full Newton when it contracts too slowly,
+    fails, or has used half of ``maxiter``; full Newton; and the LU factors
+    frozen once an increment is below ``FREEZE``. The iteration ends when an
+    update leaves every stage position :math:`q_k + Z_i` bit-identical: the
+    forces, and with them everything the step computes, are then a fixed point
+    in floating point, and the forces of that sweep are reused for the step.
+    Otherwise :func:`.newton_status` decides (an increment that stops decreasing
+    below the tolerance: round-off).
+
+    **Why one flat loop.** Every array bound to a new name inside an inlined
+    helper costs numba an atomic reference-count increment and decrement
+    wherever its pruning pass cannot pair them (helpers with several exits, or
+    with other helpers inside): as separate helpers, the solve and the end of
+    the step cost 25 of each per step, a third of the pendulum's step. Here the
+    work arrays are bound once, before the first step.
     """
     n = q0.shape[0]
     r = b.shape[0]
     s = control_p.shape[0]
     u = implicit.shape[0]
     autonomous = traits[AUTONOMOUS] != 0
+    banded = pattern is not None
     nnz = block_size(n, pattern)
     Q = np.zeros(n)
     zero = np.zeros(n)
@@ -325,10 +199,10 @@ def stage_form_loop(
     piv = np.zeros(u * n, dtype=np.int64)
     x = np.zeros(n)
     mz = np.zeros(n)
-    work = (Q, zero, Lq, Lv, Lqq, Lqv, Lvv, Fv, F, K, R, piv, x, mz)
     Z = np.zeros((u, n))
     C = np.zeros((s, n))
     offset = np.zeros((u, n))
+    F_next = np.zeros((u, n))  # the forces extrapolated to the next step's implicit points
     stage_gauge = np.zeros((u, n))
     control_gauge = np.zeros((s, n))
     # the constant mass matrix, factorised once as a one-stage "Jacobian" (a diagonal
@@ -358,6 +232,7 @@ def stage_form_loop(
         for a in range(n):
             Z[il, a] = c[implicit[il]] * h * v0[a]
     h2 = h * h
+    contraction = min(MASS_CONTRACTION_MAX, MASS_CONTRACTION * u * n)
     worst = 0.0
     retry_in = 0
     have_start_force = False
@@ -395,31 +270,133 @@ def stage_form_loop(
                 for jk in range(known.shape[0]):
                     acc += h2 * stage_force[il, known[jk]] * F[known[jk], a]
                 offset[il, a] = acc
+        if k > 0:
+            # first iterate: Z_i = M^-1 (offset_i + h^2 sum_j W_ij F~_j), the stage
+            # equations with the extrapolated forces F~
+            for il in range(u):
+                for a in range(n):
+                    acc = offset[il, a]
+                    for jl in range(u):
+                        acc += h2 * stage_force[il, implicit[jl]] * F_next[jl, a]
+                    x[a] = acc
+                solve_mass(KM, pivM, mass_diagonal, x, traits, pattern)
+                for a in range(n):
+                    Z[il, a] = x[a]
+        # ---- the stage equations (see the docstring)
         cheap = cheap_first and retry_in == 0
-        status, its, increment, residual, switched, current = STATUS_OK, 0, 0.0, 0.0, False, False
+        status = STATUS_OK
+        its = 0
+        increment = 0.0
+        residual = 0.0
+        switched = False
+        current = False
         if u > 0:
-            status, its, increment, residual, switched, current = stage_solve(
-                fn,
-                traits,
-                pattern,
-                tk,
-                h,
-                qk,
-                Z,
-                offset,
-                prm,
-                c,
-                implicit,
-                stage_force,
-                M,
-                KM,
-                pivM,
-                mass_diagonal,
-                tol,
-                maxiter,
-                work,
-                cheap,
-            )
+            status = STATUS_NEWTON_FAILED
+            previous = np.inf
+            frozen = False
+            base = 0.0
+            for a in range(n):
+                base = max(base, abs(qk[a]))
+            while its < maxiter:
+                its += 1
+                full = not (cheap or frozen)
+                if full:
+                    K[:, :] = 0.0
+                for jl in range(u):
+                    j = implicit[jl]
+                    for a in range(n):
+                        Q[a] = qk[a] + Z[jl, a]
+                    tj = 0.0 if autonomous else tk + c[j] * h
+                    if full:
+                        point_hessian(fn, tj, Q, zero, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
+                        for il in range(u):
+                            add_block(
+                                K, il, jl + 1, u, n, 1.0 if il == jl else 0.0, M,
+                                -h2 * stage_force[il, j], Lqq, 0.0, 0.0, Lqv, Fv, traits,
+                                pattern, None,
+                            )  # fmt: skip
+                    else:
+                        point_gradient(fn, tj, Q, zero, prm, Lq, Lv)
+                    for a in range(n):
+                        F[j, a] = Lq[a]
+                residual = 0.0
+                for il in range(u):
+                    for a in range(n):
+                        x[a] = Z[il, a]
+                    mass_times(M, mass_diagonal, x, mz, traits, pattern)
+                    for a in range(n):
+                        acc = offset[il, a]
+                        for jl in range(u):
+                            acc += h2 * stage_force[il, implicit[jl]] * F[implicit[jl], a]
+                        val = mz[a] - acc
+                        R[unknown(il, a, u, n, banded)] = -val
+                        if not abs(val) <= residual:  # also catches NaN
+                            residual = abs(val)
+                if not residual < 1e300:
+                    status = STATUS_NONFINITE
+                    increment = np.inf
+                    break
+                if cheap:
+                    for il in range(u):
+                        for a in range(n):
+                            x[a] = R[unknown(il, a, u, n, banded)]
+                        solve_mass(KM, pivM, mass_diagonal, x, traits, pattern)
+                        for a in range(n):
+                            R[unknown(il, a, u, n, banded)] = x[a]
+                else:
+                    if full and not factor_jacobian(K, piv, u, traits, pattern):
+                        status = STATUS_SINGULAR
+                        increment = np.inf
+                        break
+                    solve_jacobian(K, piv, u, R, traits, pattern)
+                increment = 0.0
+                size = 0.0
+                moved = False
+                for il in range(u):
+                    for a in range(n):
+                        delta = R[unknown(il, a, u, n, banded)]
+                        updated = Z[il, a] + delta
+                        if qk[a] + updated != qk[a] + Z[il, a]:
+                            moved = True
+                        Z[il, a] = updated
+                        if abs(delta) > increment:
+                            increment = abs(delta)
+                        if abs(Z[il, a]) > size:
+                            size = abs(Z[il, a])
+                if not moved:
+                    # every stage position q_k + Z_i is bit-identical: the forces, and so
+                    # Z and the step, are a fixed point in floating point; the forces of
+                    # this sweep are those at Z unless the Hessian's CSE gave them
+                    status = STATUS_OK
+                    current = not full
+                    break
+                scale = 1.0 + max(size, base)
+                if (
+                    cheap
+                    and its >= 2
+                    and increment > contraction * previous
+                    and increment > tol * scale
+                ):
+                    # too slow at this h (or diverging): exact Jacobian from here on
+                    cheap = False
+                    switched = True
+                    previous = np.inf
+                    continue
+                decision = newton_status(increment, previous, scale, tol, its, maxiter)
+                if decision == CONVERGED:
+                    status = STATUS_OK
+                    break
+                if cheap and (decision != CONTINUE or 2 * its >= maxiter):
+                    # the cheap iteration leaves full Newton at least half of the iterations
+                    cheap = False
+                    switched = True
+                    previous = np.inf
+                    continue
+                if decision != CONTINUE:
+                    break
+                if not cheap and increment <= FREEZE * (1.0 + size):
+                    frozen = True
+                previous = increment
         if switched:
             retry_in = MASS_RETRY
         elif retry_in > 0:
@@ -429,32 +406,41 @@ def stage_form_loop(
             iterations_out[slot] = its
         iteration_total[0] += its
         if status == STATUS_OK:
-            status = finish_step(
-                fn,
-                traits,
-                pattern,
-                current,
-                tk,
-                h,
-                qk,
-                pk,
-                Z,
-                C,
-                control_gauge,
-                F,
-                prm,
-                b,
-                c,
-                implicit,
-                rest,
-                control_p,
-                control_force,
-                Phi1,
-                KM,
-                pivM,
-                mass_diagonal,
-                work,
-            )
+            # ---- the end of the step: forces at the solution (unless the last sweep
+            # gave them), M C^mu = h c_mu p_k + h sum_j Y_mu,j a_j + h^2 sum_j W_mu,j F_j,
+            # then the forces at the points that are explicit once C is known
+            for jl in range(0 if current else u):
+                j = implicit[jl]
+                for a in range(n):
+                    Q[a] = qk[a] + Z[jl, a]
+                point_gradient(fn, 0.0 if autonomous else tk + c[j] * h, Q, zero, prm, Lq, Lv)
+                for a in range(n):
+                    F[j, a] = Lq[a]
+            for mu in range(s):
+                for a in range(n):
+                    acc = 0.0
+                    for j in range(r):
+                        acc += control_force[mu, j] * F[j, a]
+                    x[a] = h * control_p[mu] * pk[a] + control_gauge[mu, a] + h2 * acc
+                solve_mass(KM, pivM, mass_diagonal, x, traits, pattern)
+                for a in range(n):
+                    C[mu, a] = x[a]
+            for jr in range(rest.shape[0]):
+                j = rest[jr]
+                for a in range(n):
+                    acc = 0.0
+                    for mu in range(s):
+                        acc += Phi1[j, mu] * C[mu, a]
+                    Q[a] = qk[a] + acc
+                point_gradient(fn, 0.0 if autonomous else tk + c[j] * h, Q, zero, prm, Lq, Lv)
+                for a in range(n):
+                    F[j, a] = Lq[a]
+            for a in range(n):
+                if not abs(C[s - 1, a]) < 1e300:
+                    status = STATUS_NONFINITE
+                for j in range(r):
+                    if not abs(F[j, a]) < 1e300:
+                        status = STATUS_NONFINITE
         if status != STATUS_OK:
             if k % save_every != 0:  # keep the last good state, even if not due for saving
                 saved = save_row(
@@ -470,101 +456,21 @@ def stage_form_loop(
                 acc += b[j] * F[j, a]
             dp[a] = h * acc
         compensated_add(pk, p_lost, dp)
+        for il in range(u):
+            for a in range(n):
+                acc = 0.0
+                for j in range(r):
+                    acc += X[il, j] * F[j, a]
+                F_next[il, a] = acc
         if reuse_endpoint:
             for a in range(n):
                 F[0, a] = F[r - 1, a]
             have_start_force = True
         # adds C[s - 1], the last row: C^s
         advance_position(qk, q_lost, C, turns, periodic)
-        # next guess: this step's polynomial at the next step's implicit points
-        for il in range(u):
-            for a in range(n):
-                acc = 0.0
-                for mu in range(s):
-                    acc += E[il, mu] * C[mu, a]
-                Z[il, a] = acc - C[s - 1, a]
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             saved = save_row(
                 saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out,
                 periodic,
             )  # fmt: skip
     return STATUS_OK, n_steps, saved, worst, 0.0
-
-
-@kernel
-def finish_step(
-    fn,
-    traits,
-    pattern,
-    forces_current,
-    tk,
-    h,
-    qk,
-    pk,
-    Z,
-    C,
-    control_gauge,
-    F,
-    prm,
-    b,
-    c,
-    implicit,
-    rest,
-    control_p,
-    control_force,
-    Phi1,
-    KM,
-    pivM,
-    mass_diagonal,
-    work,
-):
-    r"""After convergence: forces at the solution, the control points, the remaining forces.
-
-    :math:`M C^\mu = h\hat c_\mu p_k + h\sum_j \hat Y_{\mu j}a_j + h^2\sum_j
-    \hat W_{\mu j}F_j` (the middle term given as ``control_gauge``), then
-    :math:`F` at the points that are explicit once :math:`C` is known.
-    Returns a status (non-finite values are a failure).
-    """
-    Q, zero, Lq, Lv = work[0], work[1], work[2], work[3]
-    x = work[12]
-    u, n = Z.shape
-    s = C.shape[0]
-    r = b.shape[0]
-    autonomous = traits[AUTONOMOUS] != 0
-    h2 = h * h
-    # forces_current: the solve's last sweep evaluated F at exactly this Z (saves u
-    # evaluations per step, bit for bit the same result)
-    for jl in range(0 if forces_current else u):
-        j = implicit[jl]
-        for a in range(n):
-            Q[a] = qk[a] + Z[jl, a]
-        point_gradient(fn, 0.0 if autonomous else tk + c[j] * h, Q, zero, prm, Lq, Lv)
-        for a in range(n):
-            F[j, a] = Lq[a]
-    for mu in range(s):
-        for a in range(n):
-            acc = 0.0
-            for j in range(r):
-                acc += control_force[mu, j] * F[j, a]
-            acc = h * control_p[mu] * pk[a] + control_gauge[mu, a] + h2 * acc
-            x[a] = acc
-        solve_mass(KM, pivM, mass_diagonal, x, traits, pattern)
-        for a in range(n):
-            C[mu, a] = x[a]
-    for jr in range(rest.shape[0]):
-        j = rest[jr]
-        for a in range(n):
-            acc = 0.0
-            for mu in range(s):
-                acc += Phi1[j, mu] * C[mu, a]
-            Q[a] = qk[a] + acc
-        point_gradient(fn, 0.0 if autonomous else tk + c[j] * h, Q, zero, prm, Lq, Lv)
-        for a in range(n):
-            F[j, a] = Lq[a]
-    for a in range(n):
-        if not abs(C[s - 1, a]) < 1e300:
-            return STATUS_NONFINITE
-        for j in range(r):
-            if not abs(F[j, a]) < 1e300:
-                return STATUS_NONFINITE
-    return STATUS_OK

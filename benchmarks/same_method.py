@@ -1,0 +1,146 @@
+"""Per step against the strongest hand-written kernel of the same method, at the same h.
+
+For every problem and method: galerkin_vi's CPU time per step and iterations per
+step, the same for the hand-written kernel of the same method iterated to
+round-off (``peers/strong.py``: fixed-point Gauss–Nyström or Lobatto IIIA–IIIB
+with first-same-as-last for separable H, fixed-point Gauss IRK on (q, p) for the
+double pendulum, all started from extrapolated stage forces), the ratio, and the
+largest difference of the final states (both runs take the same steps: a large
+difference would mean the two do not compute the same method).
+
+Both sides run in this process, interleaved, best of ``--repeats``: only the
+ratios compare across machines.
+
+Usage::
+
+    python benchmarks/same_method.py                         # all problems, s = 2..4
+    python benchmarks/same_method.py --problems pendulum kepler --json out.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+_HERE = str(Path(__file__).resolve().parent)
+if _HERE not in sys.path:
+    sys.path.insert(0, _HERE)
+
+import galerkin_vi as gvi  # noqa: E402
+from peers import cases, strong  # noqa: E402
+
+PROBLEMS = ("pendulum", "kepler", "henon_heiles", "fpu", "outer_solar_system", "double_pendulum")
+#: (label, degree s, quadrature family)
+METHODS = (
+    ("Gauss(2)", 2, "gauss"),
+    ("Gauss(3)", 3, "gauss"),
+    ("Gauss(4)", 4, "gauss"),
+    ("Lobatto(3)", 2, "lobatto"),
+    ("Lobatto(4)", 3, "lobatto"),
+    ("Lobatto(5)", 4, "lobatto"),
+)
+
+
+def _clock(fn) -> float:
+    # CPU time of this process: a shared machine's other tenants steal wall time
+    start = time.process_time()
+    fn()
+    return time.process_time() - start
+
+
+def row(case: cases.Case, label: str, s: int, family: str, seconds: float, repeats: int) -> dict:
+    """One problem and method: times, iterations, final-state difference."""
+    quad = gvi.gauss_legendre(s) if family == "gauss" else gvi.gauss_lobatto(s + 1)
+    integ = gvi.Integrator(case.problem.system, gvi.Galerkin(s, quad))
+    h, prm = case.per_step_h, case.problem.params
+
+    def gvi_run(n):
+        return integ.integrate(case.q0, case.v0, h=h, n_steps=n, save_every=n, params=prm)
+
+    p0 = gvi_run(1).p[0]
+    if not case.separable:
+        if family != "gauss":
+            return {}
+        tables = strong.gauss_fixed_point_tables(s, first_order=True)
+
+        def hw_run(n):
+            return strong.run_irk(case.problem_id, tables, case.q0, p0, h, n, n, case.hw_params)
+    else:
+        tables = (
+            strong.gauss_fixed_point_tables(s)
+            if family == "gauss"
+            else strong.lobatto_fixed_point_tables(s + 1)
+        )
+
+        def hw_run(n):
+            return strong.run_nystrom(case.problem_id, tables, case.q0, p0, h, n, n, case.hw_params)
+
+    gvi_run(10)
+    hw_run(10)
+    probe = 500
+    n = int(min(1_000_000, max(500, probe * seconds / max(_clock(lambda: gvi_run(probe)), 1e-9))))
+    t_gvi = t_hw = math.inf
+    for _ in range(repeats):
+        t_gvi = min(t_gvi, _clock(lambda: gvi_run(n)))
+        t_hw = min(t_hw, _clock(lambda: hw_run(n)))
+    a, b = gvi_run(n), hw_run(n)
+    scale = 1.0 + float(np.max(np.abs(b.q[-1])))
+    return {
+        "problem": case.name,
+        "method": label,
+        "h": h,
+        "n_steps": n,
+        "gvi_ns": 1e9 * t_gvi / n,
+        "hw_ns": 1e9 * t_hw / n,
+        "ratio": t_gvi / t_hw,
+        "gvi_iterations": a.mean_newton_iterations,
+        "hw_sweeps": b.mean_sweeps,
+        "final_q_difference": float(np.max(np.abs(a.q[-1] - b.q[-1]))) / scale,
+        "loop": integ.kernel_path,
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="benchmarks/same_method.py", description=__doc__)
+    parser.add_argument("--problems", nargs="+", default=list(PROBLEMS), choices=PROBLEMS)
+    parser.add_argument("--methods", nargs="+", default=[m[0] for m in METHODS])
+    parser.add_argument("--seconds", type=float, default=0.05, help="length of one timed run")
+    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--json", type=Path, default=None)
+    args = parser.parse_args(argv)
+    header = (
+        f"{'problem':20s} {'method':11s} {'loop':10s} {'gvi ns':>9s} {'hw ns':>9s} {'ratio':>6s}"
+        f" {'gvi its':>8s} {'hw sweeps':>9s} {'final dq':>9s}"
+    )
+    print(header)
+    print("-" * len(header))
+    rows = []
+    for name in args.problems:
+        case = cases.make_case(name)
+        for label, s, family in METHODS:
+            if label not in args.methods:
+                continue
+            r = row(case, label, s, family, args.seconds, args.repeats)
+            if not r:
+                continue
+            rows.append(r)
+            print(
+                f"{name:20s} {label:11s} {r['loop']:10s} {r['gvi_ns']:9.1f} {r['hw_ns']:9.1f}"
+                f" {r['ratio']:6.2f} {r['gvi_iterations']:8.2f} {r['hw_sweeps']:9.2f}"
+                f" {r['final_q_difference']:9.1e}",
+                flush=True,
+            )
+    if args.json:
+        args.json.write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
