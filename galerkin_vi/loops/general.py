@@ -10,7 +10,7 @@ separately when it is not zero), the stage equations of one step are
     \qquad R^0 = p_k + G^0,\quad R^\nu = G^\nu\ (1 \le \nu < s),
     \qquad p_{k+1} = G^s = p_k + h \sum_i b_i (L_q + f)^{(i)},
 
-solved by Newton's method with the exact Jacobian (notation of :mod:`.common`).
+solved by simplified Newton with the exact Jacobian (notation of :mod:`.common`).
 """
 
 # ruff: noqa: N803, N806
@@ -20,7 +20,6 @@ import numpy as np
 
 from ._jit import driver, kernel
 from .common import (
-    FREEZE,
     STATUS_NEWTON_FAILED,
     STATUS_NONFINITE,
     STATUS_OK,
@@ -48,13 +47,21 @@ from .point import point_gradient, point_hessian
 from .traits import HAS_FV
 
 __all__ = [
+    "SIMPLIFIED_CONTRACTION",
+    "STALE_RETRY",
     "assemble_gradient",
     "assemble_newton",
     "general_loop",
     "make_work",
     "momentum_increment",
-    "solve_stages",
 ]
+
+#: simplified Newton keeps its factors while each increment is at most this times the
+#: one before (an exact Newton iteration costs one Hessian per point and an LU more)
+SIMPLIFIED_CONTRACTION = 0.01
+#: after factors carried over from an earlier step contracted too slowly, the next
+#: steps assemble their Jacobian at their first iterate before stale factors are tried
+STALE_RETRY = 16
 
 
 @kernel
@@ -150,73 +157,6 @@ def assemble_newton(
 
 
 @kernel
-def solve_stages(
-    fn, t0, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, traits, pattern, couplings
-):
-    r"""Newton on the stage equations; C[1:] holds the guess on entry, the solution on exit.
-
-    Full Newton with the exact Jacobian, assembled and factorised, until an
-    increment is below ``FREEZE * (1 + |C|)``: the next one is then at
-    round-off level, so the remaining iterations reuse the last LU factors and
-    evaluate only the gradient. The stopping rule: increment zero, or no longer
-    decreasing once below ``tol`` (:func:`~galerkin_vi.newton.newton_status`).
-
-    Returns (status, iterations, last increment, last residual max-norm).
-    """
-    Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = work
-    s1, n = C.shape
-    s = s1 - 1
-    banded = pattern is not None
-    previous = np.inf
-    residual = np.inf
-    frozen = False
-    # increments are judged against the size of q = q_k + C: far from the origin the
-    # round-off floor of C is that of q
-    base = 0.0
-    for a in range(n):
-        base = max(base, abs(qk[a]))
-    for it in range(1, maxiter + 1):
-        if frozen:
-            assemble_gradient(fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
-        else:
-            assemble_newton(
-                fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv, G, K,
-                traits, pattern, couplings,
-            )  # fmt: skip
-        residual = 0.0
-        for nu in range(s):
-            for a in range(n):
-                val = G[nu, a] + (pk[a] if nu == 0 else 0.0)
-                R[unknown(nu, a, s, n, banded)] = -val
-                if not abs(val) <= residual:  # also catches NaN
-                    residual = abs(val)
-        if not residual < 1e300:
-            return STATUS_NONFINITE, it, np.inf, residual
-        if not frozen and not factor_jacobian(K, piv, s, traits, pattern):
-            return STATUS_SINGULAR, it, np.inf, residual
-        solve_jacobian(K, piv, s, R, traits, pattern)
-        increment = 0.0
-        size = 0.0
-        for nu in range(1, s1):
-            for a in range(n):
-                delta = R[unknown(nu - 1, a, s, n, banded)]
-                C[nu, a] += delta
-                if abs(delta) > increment:
-                    increment = abs(delta)
-                if abs(C[nu, a]) > size:
-                    size = abs(C[nu, a])
-        status = newton_status(increment, previous, 1.0 + max(size, base), tol, it, maxiter)
-        if status == CONVERGED:
-            return STATUS_OK, it, increment, residual
-        if status != CONTINUE:
-            return STATUS_NEWTON_FAILED, it, increment, residual
-        if increment <= FREEZE * (1.0 + size):
-            frozen = True
-        previous = increment
-    return STATUS_NEWTON_FAILED, maxiter, previous, residual
-
-
-@kernel
 def make_work(s, n, traits, pattern):
     """Preallocated work arrays of one step (allocated once per run)."""
     nnz = block_size(n, pattern)
@@ -265,7 +205,7 @@ def general_loop(
     iterations_out,
     iteration_total,
 ):
-    """Run ``n_steps`` steps of the position–momentum map from (q0, p0).
+    r"""Run ``n_steps`` steps of the position–momentum map from (q0, p0).
 
     ``fn`` holds the point functions' addresses (:mod:`.point`), ``traits``,
     ``pattern`` (``None``: dense) and ``periodic`` the system's structure,
@@ -275,16 +215,45 @@ def general_loop(
     ``iteration_total[0]`` their sum: a long run with ``save_every`` stores
     nothing per step.
 
+    **Simplified Newton.** The stage equations :math:`R(C) = 0` are solved with
+    the LU factors of the exact Jacobian :math:`K` kept across iterations *and
+    steps* (as Hairer's RADAU5 and GNI codes do): an iteration is one gradient
+    per quadrature point and one solve with the stored factors. The Jacobian is
+    assembled afresh (one Hessian per quadrature point and an LU) on the first
+    step, whenever the increments contract by less than ``SIMPLIFIED_CONTRACTION``
+    from one iteration to the next (and then at the first iterate of the next
+    ``STALE_RETRY`` steps too: the Jacobian drifts too fast for the step size), or
+    when the iteration fails with factors from an earlier iterate. The iteration ends when
+    an update leaves every control point bit-identical (the gradients of that
+    sweep are then the gradients at the solution, and the momentum update
+    reuses them), or by :func:`.newton_status`.
+
     The new momentum is :math:`p_k` plus :func:`momentum_increment`, added
     with compensated summation like the positions. Saves rows at steps k with
-    k % save_every == 0 and at the last step.
-    Returns (status, steps completed, rows saved, max residual, failing increment).
+    k % save_every == 0 and at the last step. The solve is written into the step
+    loop, its work arrays bound once (see :func:`.stage_form_loop`: no
+    reference counts per step). Returns (status, steps completed, rows saved,
+    max residual, failing increment).
     """
     n = q0.shape[0]
     s1 = d.shape[0]
     s = s1 - 1
-    work = make_work(s, n, traits, pattern)
-    Q, V, Lq, Lv = work[0], work[1], work[2], work[3]
+    r = b.shape[0]
+    banded = pattern is not None
+    nnz = block_size(n, pattern)
+    Q = np.zeros(n)
+    V = np.zeros(n)
+    Lq = np.zeros(n)
+    Lv = np.zeros(n)
+    Lqq = np.zeros(nnz)
+    Lqv = np.zeros(nnz)
+    Lvv = np.zeros(nnz)
+    G = np.zeros((s1, n))
+    K = new_jacobian(s, n, traits, pattern)
+    R = np.zeros(s * n)
+    piv = np.zeros(s * n, dtype=np.int64)
+    Fv = np.zeros(nnz if traits[HAS_FV] != 0 else 1)
+    F = np.zeros((r, n))  # L_q + f at the quadrature points, of the last gradient sweep
     dp = np.zeros(n)  # the step's momentum change
     p_lost = np.zeros(n)  # compensated summation of the momenta
     C = np.zeros((s1, n))
@@ -298,21 +267,133 @@ def general_loop(
     first_guess(C, d, h, v0)
     saved = save_row(0, t0, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic)
     worst = 0.0
+    factored = False  # K holds LU factors (of some earlier iterate)
+    fresh_for = 0  # steps that start with a fresh Jacobian before stale factors are tried
     for k in range(n_steps):
         tk = t0 + k * h
         if k > 0:
             extrapolate(C, C_prev, E)
-        status, its, increment, residual = solve_stages(
-            fn, tk, h, qk, C, pk, prm, b, c, Phi, D, tol, maxiter, work, traits, pattern, couplings
-        )
+        # ---- the stage equations (see the docstring)
+        status = STATUS_NEWTON_FAILED
+        its = 0
+        increment = np.inf
+        residual = np.inf
+        previous = np.inf
+        fresh = not factored or fresh_for > 0  # assemble and factorise K in this iteration
+        if fresh_for > 0:
+            fresh_for -= 1
+        refreshed = False  # K was assembled in this step
+        current = False
+        # increments are judged against the size of q = q_k + C: far from the origin
+        # the round-off floor of C is that of q
+        base = 0.0
+        for a in range(n):
+            base = max(base, abs(qk[a]))
+        while its < maxiter:
+            its += 1
+            G[:, :] = 0.0
+            if fresh:
+                K[:, :] = 0.0
+            for i in range(r):
+                interpolate(i, h, qk, C, Phi, D, Q, V)
+                if fresh:
+                    point_hessian(fn, tk + c[i] * h, Q, V, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
+                    for nu in range(s):
+                        for mu in range(1, s1):
+                            add_block(
+                                K, nu, mu, s, n, b[i] * D[i, nu] * D[i, mu] / h, Lvv,
+                                b[i] * h * Phi[i, nu] * Phi[i, mu], Lqq,
+                                b[i] * Phi[i, nu] * D[i, mu], b[i] * D[i, nu] * Phi[i, mu],
+                                Lqv, Fv, traits, pattern, couplings,
+                            )  # fmt: skip
+                else:
+                    point_gradient(fn, tk + c[i] * h, Q, V, prm, Lq, Lv)
+                for a in range(n):
+                    F[i, a] = Lq[a]
+                for nu in range(s1):
+                    wq = b[i] * h * Phi[i, nu]
+                    wv = b[i] * D[i, nu]
+                    for a in range(n):
+                        G[nu, a] += wq * Lq[a] + wv * Lv[a]
+            residual = 0.0
+            for nu in range(s):
+                for a in range(n):
+                    val = G[nu, a] + (pk[a] if nu == 0 else 0.0)
+                    R[unknown(nu, a, s, n, banded)] = -val
+                    if not abs(val) <= residual:  # also catches NaN
+                        residual = abs(val)
+            if not residual < 1e300:
+                status = STATUS_NONFINITE
+                increment = np.inf
+                break
+            if fresh:
+                factored = factor_jacobian(K, piv, s, traits, pattern)
+                if not factored:
+                    status = STATUS_SINGULAR
+                    increment = np.inf
+                    break
+            solve_jacobian(K, piv, s, R, traits, pattern)
+            increment = 0.0
+            size = 0.0
+            moved = False
+            for nu in range(1, s1):
+                for a in range(n):
+                    delta = R[unknown(nu - 1, a, s, n, banded)]
+                    updated = C[nu, a] + delta
+                    if updated != C[nu, a]:
+                        moved = True
+                    C[nu, a] = updated
+                    if abs(delta) > increment:
+                        increment = abs(delta)
+                    if abs(C[nu, a]) > size:
+                        size = abs(C[nu, a])
+            if fresh:
+                refreshed = True
+            if not moved:
+                # the control points are a fixed point in floating point; the gradients
+                # of this sweep are those at C unless the Hessian's CSE gave them
+                status = STATUS_OK
+                current = not fresh
+                break
+            fresh = False
+            decision = newton_status(increment, previous, 1.0 + max(size, base), tol, its, maxiter)
+            if decision == CONVERGED:
+                status = STATUS_OK
+                break
+            if decision != CONTINUE:
+                if refreshed:
+                    break
+                # factors of an earlier step: retry with the exact Jacobian
+                fresh = True
+                previous = np.inf
+                continue
+            if (
+                its >= 2
+                and increment > SIMPLIFIED_CONTRACTION * previous
+                and increment > tol * (1.0 + max(size, base))
+            ):
+                # contracting too slowly: the exact Jacobian at this iterate, and at the
+                # start of the next steps
+                fresh = True
+                if not refreshed:
+                    fresh_for = STALE_RETRY
+            previous = increment
         slot = k // save_every
         if its > iterations_out[slot]:
             iterations_out[slot] = its
         iteration_total[0] += its
-        if status == STATUS_OK and not momentum_increment(
-            fn, tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, dp
-        ):
-            status = STATUS_NONFINITE
+        if status == STATUS_OK:
+            if current:
+                # the last sweep's gradients are those at the solution
+                for a in range(n):
+                    acc = 0.0
+                    for i in range(r):
+                        acc += b[i] * F[i, a]
+                    dp[a] = h * acc
+                    if not abs(dp[a]) < 1e300:
+                        status = STATUS_NONFINITE
+            elif not momentum_increment(fn, tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, dp):
+                status = STATUS_NONFINITE
         if status != STATUS_OK:
             if k % save_every != 0:  # keep the last good state, even if not due for saving
                 saved = save_row(
