@@ -33,8 +33,9 @@ _HERE = str(Path(__file__).resolve().parent)
 if _HERE not in sys.path:
     sys.path.insert(0, _HERE)
 
-import galerkin_vi as gvi  # noqa: E402
 from peers import cases, strong  # noqa: E402
+
+import galerkin_vi as gvi  # noqa: E402
 
 PROBLEMS = ("pendulum", "kepler", "henon_heiles", "fpu", "outer_solar_system", "double_pendulum")
 #: (label, degree s, quadrature family)

@@ -223,8 +223,6 @@ def _compute(method: Galerkin) -> SeparableTables:
         control_a=rounded(control_a, range(s), range(r)),
         control_force=rounded(control_force, range(s), range(r)),
         Phi1=rounded(Phi1, range(r), range(s)),
-        force_extrapolation=np.array(
-            [[float(x) for x in row] for row in X], dtype=float
-        ).reshape(len(implicit), r),
+        force_extrapolation=np.array(X, dtype=float).reshape(len(implicit), r),
         reuse_endpoint=reuse_endpoint,
     )

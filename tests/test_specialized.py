@@ -201,8 +201,11 @@ def test_constant_mass_iteration_hands_over_to_newton_when_stiff():
     a = fast.integrate([0.1], [1.0], h=0.05, n_steps=200)
     b = general.integrate([0.1], [1.0], h=0.05, n_steps=200)
     assert np.abs(a.q - b.q).max() <= 1e-14
-    assert a.newton_iterations[0] > b.newton_iterations[0]  # the failed cheap attempt
-    # a handover costs ~2 iterations once per 65 steps (measured mean excess 0.1)
+    # the failed cheap attempt: two sweeps to see it contract too slowly, then Newton
+    # (measured 6 on the first step, 4 to 7 on the next 64, which start with Newton)
+    assert a.newton_iterations[0] >= a.newton_iterations[1:65].min() + 2
+    # a handover costs ~2 iterations once per 65 steps; the general loop's simplified
+    # Newton takes more iterations here (measured means 4.8 and 6.1)
     assert a.mean_newton_iterations <= b.mean_newton_iterations + 0.5
 
 

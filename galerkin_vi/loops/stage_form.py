@@ -232,6 +232,18 @@ def stage_form_loop(
         for a in range(n):
             Z[il, a] = c[implicit[il]] * h * v0[a]
     h2 = h * h
+    # the control points the step needs: C^s (q_{k+1}) and those that place the
+    # explicit points (Gauss: C^s only)
+    needed = np.zeros(s, dtype=np.bool_)
+    needed[s - 1] = True
+    for jr in range(rest.shape[0]):
+        for mu in range(s):
+            if Phi1[rest[jr], mu] != 0.0:
+                needed[mu] = True
+    W2 = np.zeros((u, u))  # h^2 W between the implicit points
+    for il in range(u):
+        for jl in range(u):
+            W2[il, jl] = h2 * stage_force[il, implicit[jl]]
     contraction = min(MASS_CONTRACTION_MAX, MASS_CONTRACTION * u * n)
     worst = 0.0
     retry_in = 0
@@ -277,7 +289,7 @@ def stage_form_loop(
                 for a in range(n):
                     acc = offset[il, a]
                     for jl in range(u):
-                        acc += h2 * stage_force[il, implicit[jl]] * F_next[jl, a]
+                        acc += W2[il, jl] * F_next[jl, a]
                     x[a] = acc
                 solve_mass(KM, pivM, mass_diagonal, x, traits, pattern)
                 for a in range(n):
@@ -320,49 +332,74 @@ def stage_form_loop(
                     for a in range(n):
                         F[j, a] = Lq[a]
                 residual = 0.0
-                for il in range(u):
-                    for a in range(n):
-                        x[a] = Z[il, a]
-                    mass_times(M, mass_diagonal, x, mz, traits, pattern)
-                    for a in range(n):
-                        acc = offset[il, a]
-                        for jl in range(u):
-                            acc += h2 * stage_force[il, implicit[jl]] * F[implicit[jl], a]
-                        val = mz[a] - acc
-                        R[unknown(il, a, u, n, banded)] = -val
-                        if not abs(val) <= residual:  # also catches NaN
-                            residual = abs(val)
-                if not residual < 1e300:
-                    status = STATUS_NONFINITE
-                    increment = np.inf
-                    break
-                if cheap:
-                    for il in range(u):
-                        for a in range(n):
-                            x[a] = R[unknown(il, a, u, n, banded)]
-                        solve_mass(KM, pivM, mass_diagonal, x, traits, pattern)
-                        for a in range(n):
-                            R[unknown(il, a, u, n, banded)] = x[a]
-                else:
-                    if full and not factor_jacobian(K, piv, u, traits, pattern):
-                        status = STATUS_SINGULAR
-                        increment = np.inf
-                        break
-                    solve_jacobian(K, piv, u, R, traits, pattern)
                 increment = 0.0
                 size = 0.0
                 moved = False
-                for il in range(u):
-                    for a in range(n):
-                        delta = R[unknown(il, a, u, n, banded)]
-                        updated = Z[il, a] + delta
-                        if qk[a] + updated != qk[a] + Z[il, a]:
-                            moved = True
-                        Z[il, a] = updated
-                        if abs(delta) > increment:
-                            increment = abs(delta)
-                        if abs(Z[il, a]) > size:
-                            size = abs(Z[il, a])
+                if cheap and mass_diagonal is not None:
+                    # fixed point with a diagonal M, in one pass:
+                    # Z_i <- (offset_i + h^2 sum_j W_ij F_j) / m
+                    for il in range(u):
+                        for a in range(n):
+                            acc = offset[il, a]
+                            for jl in range(u):
+                                acc += W2[il, jl] * F[implicit[jl], a]
+                            old = Z[il, a]
+                            updated = acc / mass_diagonal[a]
+                            val = abs(mass_diagonal[a] * old - acc)
+                            if not val <= residual:  # also catches NaN
+                                residual = val
+                            if qk[a] + updated != qk[a] + old:
+                                moved = True
+                            if abs(updated - old) > increment:
+                                increment = abs(updated - old)
+                            if abs(updated) > size:
+                                size = abs(updated)
+                            Z[il, a] = updated
+                    if not residual < 1e300:
+                        status = STATUS_NONFINITE
+                        increment = np.inf
+                        break
+                else:
+                    for il in range(u):
+                        for a in range(n):
+                            x[a] = Z[il, a]
+                        mass_times(M, mass_diagonal, x, mz, traits, pattern)
+                        for a in range(n):
+                            acc = offset[il, a]
+                            for jl in range(u):
+                                acc += W2[il, jl] * F[implicit[jl], a]
+                            val = mz[a] - acc
+                            R[unknown(il, a, u, n, banded)] = -val
+                            if not abs(val) <= residual:  # also catches NaN
+                                residual = abs(val)
+                    if not residual < 1e300:
+                        status = STATUS_NONFINITE
+                        increment = np.inf
+                        break
+                    if cheap:
+                        for il in range(u):
+                            for a in range(n):
+                                x[a] = R[unknown(il, a, u, n, banded)]
+                            solve_mass(KM, pivM, mass_diagonal, x, traits, pattern)
+                            for a in range(n):
+                                R[unknown(il, a, u, n, banded)] = x[a]
+                    else:
+                        if full and not factor_jacobian(K, piv, u, traits, pattern):
+                            status = STATUS_SINGULAR
+                            increment = np.inf
+                            break
+                        solve_jacobian(K, piv, u, R, traits, pattern)
+                    for il in range(u):
+                        for a in range(n):
+                            delta = R[unknown(il, a, u, n, banded)]
+                            updated = Z[il, a] + delta
+                            if qk[a] + updated != qk[a] + Z[il, a]:
+                                moved = True
+                            Z[il, a] = updated
+                            if abs(delta) > increment:
+                                increment = abs(delta)
+                            if abs(Z[il, a]) > size:
+                                size = abs(Z[il, a])
                 if not moved:
                     # every stage position q_k + Z_i is bit-identical: the forces, and so
                     # Z and the step, are a fixed point in floating point; the forces of
@@ -417,6 +454,8 @@ def stage_form_loop(
                 for a in range(n):
                     F[j, a] = Lq[a]
             for mu in range(s):
+                if not needed[mu]:
+                    continue
                 for a in range(n):
                     acc = 0.0
                     for j in range(r):
@@ -435,12 +474,15 @@ def stage_form_loop(
                 point_gradient(fn, 0.0 if autonomous else tk + c[j] * h, Q, zero, prm, Lq, Lv)
                 for a in range(n):
                     F[j, a] = Lq[a]
+            # p_{k+1} = p_k + h sum_j b_j F_j (added below, compensated like q); a
+            # force that is not finite makes dp not finite
             for a in range(n):
-                if not abs(C[s - 1, a]) < 1e300:
-                    status = STATUS_NONFINITE
+                acc = 0.0
                 for j in range(r):
-                    if not abs(F[j, a]) < 1e300:
-                        status = STATUS_NONFINITE
+                    acc += b[j] * F[j, a]
+                dp[a] = h * acc
+                if not (abs(C[s - 1, a]) < 1e300 and abs(dp[a]) < 1e300):
+                    status = STATUS_NONFINITE
         if status != STATUS_OK:
             if k % save_every != 0:  # keep the last good state, even if not due for saving
                 saved = save_row(
@@ -449,12 +491,6 @@ def stage_form_loop(
             return status, k, saved, worst, increment
         if residual > worst:
             worst = residual
-        # p_{k+1} = p_k + h sum_j b_j F_j, compensated like the positions
-        for a in range(n):
-            acc = 0.0
-            for j in range(r):
-                acc += b[j] * F[j, a]
-            dp[a] = h * acc
         compensated_add(pk, p_lost, dp)
         for il in range(u):
             for a in range(n):
