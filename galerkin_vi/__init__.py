@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .adaptive import AdaptiveIntegrator, AdaptiveTrajectory, PoincareTransform, encounter_scaling
 from .choice import MethodChoice, choose_method
 from .errors import (
     ConditioningWarning,
@@ -18,6 +19,8 @@ from .trajectory import Trajectory
 from .verification import OrderResult, measure_order
 
 __all__ = [
+    "AdaptiveIntegrator",
+    "AdaptiveTrajectory",
     "ConditioningWarning",
     "ConvergenceError",
     "DegenerateLagrangianError",
@@ -28,9 +31,11 @@ __all__ = [
     "MethodChoice",
     "OrderReductionWarning",
     "OrderResult",
+    "PoincareTransform",
     "QuadratureRule",
     "Trajectory",
     "choose_method",
+    "encounter_scaling",
     "gauss_legendre",
     "gauss_lobatto",
     "measure_order",

@@ -218,7 +218,18 @@ class Integrator:
         return codegen.render_module(self._spec, key)
 
     def _loop_arguments(self):
-        """The system's part of every loop's arguments: (fn, traits, pattern, periodic)."""
+        """The system's part of every loop's arguments: (fn, traits, pattern, periodic).
+
+        Built on the first run and kept: looking up the compiled functions' addresses
+        costs about 0.2 ms a call, which many short runs (adaptive landing steps,
+        ensembles, ``step``) would pay every time.
+        """
+        kept = self.__dict__.get("_kept_loop_arguments")
+        if kept is None:
+            kept = self.__dict__["_kept_loop_arguments"] = self._build_loop_arguments()
+        return kept
+
+    def _build_loop_arguments(self):
         from .loops.traits import AUTONOMOUS, BAND, HAS_FV, HAS_LQV, N_TRAITS
 
         spec = self._summary

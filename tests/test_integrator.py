@@ -269,9 +269,11 @@ def test_numpy_and_numba_backends_agree(problems, name, method):
     assert np.abs(runs[0].p - runs[1].p).max() <= 1e-13  # (control points as increments)
     np.testing.assert_array_equal(runs[0].t, runs[1].t)
     assert runs[0].newton_iterations.shape == runs[1].newton_iterations.shape == (100,)
-    assert (
-        abs(runs[0].mean_newton_iterations - runs[1].mean_newton_iterations) <= 0.5
-    )  # measured <= 0.44
+    # numba: simplified Newton (factors kept while the increments contract 100x per
+    # iteration), stopped when the positions q_k + C stop moving; numpy: exact Newton,
+    # stopped when C stops moving. Measured: numba 0.99 fewer to 1.06 more per step
+    simplified, exact = runs[0].mean_newton_iterations, runs[1].mean_newton_iterations
+    assert abs(simplified - exact) <= 1.5
 
 
 def test_auto_backend_is_numba(pendulum):

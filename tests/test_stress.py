@@ -104,7 +104,13 @@ CHAOS = {
 def test_chaotic_energy_stays_bounded(name):
     h, relative, _ = CHAOS[name]
     row = stress.energy_span(name, 2, h, 100_000, 100, relative=relative)
-    assert row["drift_ratio"] <= stress.DRIFT_BOUND  # measured 1.00 (HH), 1.12 (DP)
+    error = np.asarray(row["error"])
+    tenth = len(error) // 10
+    # against the first half, not the first tenth: on a chaotic orbit the amplitude of the
+    # bounded energy error wanders with the region visited (DP, maxima of the ten tenths:
+    # 2.3, 5.3, 4.1, 2.2, 1.6, 5.2, 4.6, 2.6, 4.4, 5.1 e-5), while a drift keeps growing
+    drift = error[-tenth:].max() / error[: len(error) // 2].max()
+    assert drift <= stress.DRIFT_BOUND  # measured 1.00 (HH), 0.97 (DP)
     assert row["max_error"] < 1e-4  # measured 5.4e-7 (HH, relative), 6.1e-5 (DP, absolute)
 
 

@@ -77,7 +77,7 @@ def solve_constrained_stages(
     """Newton on the constrained stage equations; C[1:] and lam (impulses) hold the guess.
 
     Once an increment is below ``FREEZE``, later iterations reuse the LU
-    factors (as in :func:`solve_stages`). Same stopping rule, applied to the increments
+    factors (as in :func:`.general_loop`). Same stopping rule, applied to the increments
     :math:`C`: the impulses converge with them (Newton is quadratic in all
     unknowns jointly), but their own round-off floor is far higher (the
     momentum balance of large, cancelling terms). Returns
@@ -92,7 +92,7 @@ def solve_constrained_stages(
     previous = np.inf
     residual = np.inf
     frozen = False
-    base = 0.0  # as in solve_stages: increments against the size of q = q_k + C
+    base = 0.0  # as in general_loop: increments against the size of q = q_k + C
     for a in range(n):
         base = max(base, abs(qk[a]))
     for it in range(1, maxiter + 1):

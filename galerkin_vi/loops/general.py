@@ -340,7 +340,10 @@ def general_loop(
                 for a in range(n):
                     delta = R[unknown(nu - 1, a, s, n, banded)]
                     updated = C[nu, a] + delta
-                    if updated != C[nu, a]:
+                    # the positions q_k + C decide: C, an increment, has bits far below
+                    # those of q, which a linearly converging iteration takes many
+                    # sweeps to settle (a Kepler orbit's clock: 16 instead of 4)
+                    if qk[a] + updated != qk[a] + C[nu, a]:
                         moved = True
                     C[nu, a] = updated
                     if abs(delta) > increment:
@@ -383,17 +386,22 @@ def general_loop(
             iterations_out[slot] = its
         iteration_total[0] += its
         if status == STATUS_OK:
-            if current:
-                # the last sweep's gradients are those at the solution
-                for a in range(n):
-                    acc = 0.0
-                    for i in range(r):
-                        acc += b[i] * F[i, a]
-                    dp[a] = h * acc
-                    if not abs(dp[a]) < 1e300:
-                        status = STATUS_NONFINITE
-            elif not momentum_increment(fn, tk, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, dp):
-                status = STATUS_NONFINITE
+            # the step's momentum change h sum_i b_i (L_q + f)^(i) (as momentum_increment,
+            # written out: a helper taking arrays here costs reference counts per step);
+            # the last sweep's gradients are those at the solution when it moved nothing
+            if not current:
+                for i in range(r):
+                    interpolate(i, h, qk, C, Phi, D, Q, V)
+                    point_gradient(fn, tk + c[i] * h, Q, V, prm, Lq, Lv)
+                    for a in range(n):
+                        F[i, a] = Lq[a]
+            for a in range(n):
+                acc = 0.0
+                for i in range(r):
+                    acc += b[i] * F[i, a]
+                dp[a] = h * acc
+                if not abs(dp[a]) < 1e300:
+                    status = STATUS_NONFINITE
         if status != STATUS_OK:
             if k % save_every != 0:  # keep the last good state, even if not due for saving
                 saved = save_row(

@@ -40,9 +40,31 @@ CONTINUE = newton.CONTINUE
 CONVERGED = newton.CONVERGED
 newton_status = scalar(newton.newton_status)
 lu_factor_inplace = kernel(newton.lu_factor_inplace)
-lu_solve_inplace = kernel(newton.lu_solve_inplace)
 band_lu_factor = kernel(newton.band_lu_factor)
-band_lu_solve = kernel(newton.band_lu_solve)
+lu_permute = kernel(newton.lu_permute)
+lu_forward = kernel(newton.lu_forward)
+lu_backward = kernel(newton.lu_backward)
+band_lu_forward = kernel(newton.band_lu_forward)
+band_lu_backward = kernel(newton.band_lu_backward)
+
+
+@kernel
+def lu_solve_inplace(lu, piv, x):
+    """Solve ``A y = x`` in place with :func:`lu_factor_inplace`'s factors.
+
+    As :func:`galerkin_vi.newton.lu_solve_inplace`, composed of its one-loop pieces
+    (see there: no reference counts in the caller's loop).
+    """
+    lu_permute(piv, x)
+    lu_forward(lu, x)
+    lu_backward(lu, x)
+
+
+@kernel
+def band_lu_solve(ab, piv, kl, ku, x):
+    """Solve ``A y = x`` in place with :func:`band_lu_factor`'s factors (one-loop pieces)."""
+    band_lu_forward(ab, piv, kl, ku, x)
+    band_lu_backward(ab, kl, ku, x)
 
 
 @scalar
@@ -99,40 +121,50 @@ def add_block(
     if couplings is not None:
         has_lqv, has_fv = couplings
     if pattern is not None:
-        kb = band_half_width(s, traits[BAND])
-        for k in range(pattern.shape[0]):
-            a = pattern[k, 0]
-            cc = pattern[k, 1]
-            value = w_vv * Lvv[k]
+        add_band_block(
+            K, nu, mu, s, band_half_width(s, traits[BAND]), w_vv, Lvv, w_qq, Lqq, w_qv, w_vq,
+            Lqv, Fv, has_lqv, has_fv, pattern,
+        )  # fmt: skip
+    else:
+        add_dense_block(K, nu * n, (mu - 1) * n, n, w_vv, Lvv, w_qq, Lqq, w_qv, w_vq, Lqv, Fv,
+                        has_lqv, has_fv)  # fmt: skip
+
+
+@kernel
+def add_dense_block(K, row0, col0, n, w_vv, Lvv, w_qq, Lqq, w_qv, w_vq, Lqv, Fv, has_lqv, has_fv):
+    """:func:`add_block` in dense storage, the block at (row0, col0): one loop nest."""
+    # collocated Lobatto nodes (Phi = I): L_qq only on the diagonal blocks, w_qq = 0
+    # elsewhere (the tests of w_qq and the flags are loop-invariant: hoisted)
+    for a in range(n):
+        for cc in range(n):
+            value = w_vv * Lvv[a * n + cc]
             if w_qq != 0.0:
-                value += w_qq * Lqq[k]
+                value += w_qq * Lqq[a * n + cc]
             if has_lqv:
-                value += w_qv * Lqv[k] + w_vq * Lqv[pattern[k, 2]]
+                value += w_qv * Lqv[a * n + cc] + w_vq * Lqv[cc * n + a]
             if has_fv:
-                value += w_qv * Fv[k]
-            i = a * s + nu
-            j = cc * s + mu - 1
-            K[2 * kb + i - j, j] += value
-        return
-    row0 = nu * n
-    col0 = (mu - 1) * n
-    if w_vv != 0.0:
-        for a in range(n):
-            for cc in range(n):
-                K[row0 + a, col0 + cc] += w_vv * Lvv[a * n + cc]
-    # collocated Lobatto nodes (Phi = I): L_qq only on the diagonal blocks
-    if w_qq != 0.0:
-        for a in range(n):
-            for cc in range(n):
-                K[row0 + a, col0 + cc] += w_qq * Lqq[a * n + cc]
-    if has_lqv and (w_qv != 0.0 or w_vq != 0.0):
-        for a in range(n):
-            for cc in range(n):
-                K[row0 + a, col0 + cc] += w_qv * Lqv[a * n + cc] + w_vq * Lqv[cc * n + a]
-    if has_fv and w_qv != 0.0:
-        for a in range(n):
-            for cc in range(n):
-                K[row0 + a, col0 + cc] += w_qv * Fv[a * n + cc]
+                value += w_qv * Fv[a * n + cc]
+            K[row0 + a, col0 + cc] += value
+
+
+@kernel
+def add_band_block(
+    K, nu, mu, s, kb, w_vv, Lvv, w_qq, Lqq, w_qv, w_vq, Lqv, Fv, has_lqv, has_fv, pattern
+):
+    """:func:`add_block` in banded storage of half-bandwidth ``kb``: one loop."""
+    for k in range(pattern.shape[0]):
+        a = pattern[k, 0]
+        cc = pattern[k, 1]
+        value = w_vv * Lvv[k]
+        if w_qq != 0.0:
+            value += w_qq * Lqq[k]
+        if has_lqv:
+            value += w_qv * Lqv[k] + w_vq * Lqv[pattern[k, 2]]
+        if has_fv:
+            value += w_qv * Fv[k]
+        i = a * s + nu
+        j = cc * s + mu - 1
+        K[2 * kb + i - j, j] += value
 
 
 @kernel

@@ -172,10 +172,14 @@ def stage_form_loop(
 
     **Why one flat loop.** Every array bound to a new name inside an inlined
     helper costs numba an atomic reference-count increment and decrement
-    wherever its pruning pass cannot pair them (helpers with several exits, or
-    with other helpers inside): as separate helpers, the solve and the end of
-    the step cost 25 of each per step, a third of the pendulum's step. Here the
-    work arrays are bound once, before the first step.
+    wherever its pruning pass cannot pair them: helpers with several exits, of
+    several loop nests (the LU solve, the block assembly), or called with a
+    conditional expression among their arguments. As separate helpers, the
+    solve and the end of the step cost 25 of each per step, a third of the
+    pendulum's step. Here the work arrays are bound once, before the first
+    step, and the helpers left in the loop have one loop nest each: the
+    optimised code has no reference count inside the step loop (counted in
+    the LLVM IR of the compiled loop).
     """
     n = q0.shape[0]
     r = b.shape[0]
@@ -322,8 +326,11 @@ def stage_form_loop(
                     if full:
                         point_hessian(fn, tj, Q, zero, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
                         for il in range(u):
+                            # a conditional expression among the arguments would split
+                            # the call over blocks, leaving reference counts in the loop
+                            mass_weight = 1.0 if il == jl else 0.0
                             add_block(
-                                K, il, jl + 1, u, n, 1.0 if il == jl else 0.0, M,
+                                K, il, jl + 1, u, n, mass_weight, M,
                                 -h2 * stage_force[il, j], Lqq, 0.0, 0.0, Lqv, Fv, traits,
                                 pattern, None,
                             )  # fmt: skip
