@@ -224,9 +224,11 @@ def general_loop(
     from one iteration to the next (and then at the first iterate of the next
     ``STALE_RETRY`` steps too: the Jacobian drifts too fast for the step size), or
     when the iteration fails with factors from an earlier iterate. The iteration ends when
-    an update leaves every control point bit-identical (the gradients of that
-    sweep are then the gradients at the solution, and the momentum update
-    reuses them), or by :func:`.newton_status`.
+    an update leaves every position :math:`q_k + C^\nu` bit-identical (the gradients
+    of that sweep are then the gradients at the solution, and the momentum update
+    reuses them), or by :func:`.newton_status` applied to the increments relative
+    to their own coordinates, :math:`\max_{\nu,a} |\delta C^\nu_a| /
+    (1 + |q_{k,a}| + |C^\nu_a|)`.
 
     The new momentum is :math:`p_k` plus :func:`momentum_increment`, added
     with compensated summation like the positions. Saves rows at steps k with
@@ -284,11 +286,8 @@ def general_loop(
             fresh_for -= 1
         refreshed = False  # K was assembled in this step
         current = False
-        # increments are judged against the size of q = q_k + C: far from the origin
-        # the round-off floor of C is that of q
-        base = 0.0
-        for a in range(n):
-            base = max(base, abs(qk[a]))
+        # increments are judged against the size of their coordinate of q = q_k + C:
+        # far from the origin the round-off floor of C is that of q
         while its < maxiter:
             its += 1
             G[:, :] = 0.0
@@ -333,10 +332,12 @@ def general_loop(
                     increment = np.inf
                     break
             solve_jacobian(K, piv, s, R, traits, pattern)
-            increment = 0.0
-            size = 0.0
+            increment = 0.0  # the largest |delta| (reported when the step fails)
+            # the largest |delta| relative to its own coordinate: against the largest |q|
+            # (a clock at t = 500 beside positions of size 1) the increments of the small
+            # coordinates passed for converged, and stale factors were never refreshed
+            scaled = 0.0
             moved = False
-            above_floor = False  # some increment above tol relative to its own coordinate
             for nu in range(1, s1):
                 for a in range(n):
                     delta = R[unknown(nu - 1, a, s, n, banded)]
@@ -349,10 +350,9 @@ def general_loop(
                     C[nu, a] = updated
                     if abs(delta) > increment:
                         increment = abs(delta)
-                    if abs(delta) > tol * (1.0 + abs(qk[a]) + abs(updated)):
-                        above_floor = True
-                    if abs(C[nu, a]) > size:
-                        size = abs(C[nu, a])
+                    relative = abs(delta) / (1.0 + abs(qk[a]) + abs(updated))
+                    if relative > scaled:
+                        scaled = relative
             if fresh:
                 refreshed = True
             if not moved:
@@ -362,7 +362,7 @@ def general_loop(
                 current = not fresh
                 break
             fresh = False
-            decision = newton_status(increment, previous, 1.0 + max(size, base), tol, its, maxiter)
+            decision = newton_status(scaled, previous, 1.0, tol, its, maxiter)
             if decision == CONVERGED:
                 status = STATUS_OK
                 break
@@ -373,15 +373,13 @@ def general_loop(
                 fresh = True
                 previous = np.inf
                 continue
-            if its >= 2 and increment > SIMPLIFIED_CONTRACTION * previous and above_floor:
+            if its >= 2 and scaled > SIMPLIFIED_CONTRACTION * previous and scaled > tol:
                 # contracting too slowly: the exact Jacobian at this iterate, and at the
-                # start of the next steps. Judged per coordinate: against the largest
-                # |q| (a clock at t = 500 beside positions of size 1) small increments
-                # never called for fresh factors, and stale ones crawled at 0.3 per sweep
+                # start of the next steps
                 fresh = True
                 if not refreshed:
                     fresh_for = STALE_RETRY
-            previous = increment
+            previous = scaled
         slot = k // save_every
         if its > iterations_out[slot]:
             iterations_out[slot] = its
