@@ -242,19 +242,8 @@ def general_loop(
     s = s1 - 1
     r = b.shape[0]
     banded = pattern is not None
-    nnz = block_size(n, pattern)
-    Q = np.zeros(n)
-    V = np.zeros(n)
-    Lq = np.zeros(n)
-    Lv = np.zeros(n)
-    Lqq = np.zeros(nnz)
-    Lqv = np.zeros(nnz)
-    Lvv = np.zeros(nnz)
-    G = np.zeros((s1, n))
-    K = new_jacobian(s, n, traits, pattern)
-    R = np.zeros(s * n)
-    piv = np.zeros(s * n, dtype=np.int64)
-    Fv = np.zeros(nnz if traits[HAS_FV] != 0 else 1)
+    # unpacked once, before the first step: no tuple and no reference counts per step
+    Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = make_work(s, n, traits, pattern)
     F = np.zeros((r, n))  # L_q + f at the quadrature points, of the last gradient sweep
     dp = np.zeros(n)  # the step's momentum change
     p_lost = np.zeros(n)  # compensated summation of the momenta
