@@ -83,6 +83,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from galerkin_vi import newton
+from galerkin_vi.loops import linalg
 
 __all__ = [
     "DOUBLE_PENDULUM",
@@ -496,10 +497,11 @@ def numbalsoda_data(problem: int, n_state: int, prm) -> NDArray[np.float64]:
 
 
 # ------------------------------------------------------------- linear algebra
-# The generated kernels' own LU (galerkin_vi.newton), so that a per-step ratio measures the
-# rest of the step, not two implementations of the same elimination.
-_lu_factor = nb.njit(cache=True)(newton.lu_factor_inplace)
-_lu_solve = nb.njit(cache=True)(newton.lu_solve_inplace)
+# The loops' own LU (galerkin_vi.loops.linalg: galerkin_vi.newton compiled, the solve
+# composed of its one-loop pieces), so that a per-step ratio measures the rest of the step,
+# not two implementations of the same elimination.
+_lu_factor = linalg.lu_factor_inplace
+_lu_solve = linalg.lu_solve_inplace
 
 
 _newton_status = nb.njit(cache=True)(newton.newton_status)
