@@ -56,6 +56,7 @@ import numpy as np
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
+from .errors import ConvergenceError
 from .integrator import Integrator
 from .method import Galerkin
 from .system import LagrangianSystem
@@ -313,6 +314,14 @@ class AdaptiveIntegrator:
         AdaptiveTrajectory
             States at the physical times ``t`` (not equally spaced), with
             ``tau`` the fictitious times.
+
+        Raises
+        ------
+        ConvergenceError
+            When a step's iteration fails: ``.partial`` is the
+            :class:`AdaptiveTrajectory` of the states before it, ``.t`` the
+            physical time of the last good state, ``.step`` the failing
+            fictitious step.
         """
         if (n_steps is None) == (t_final is None):
             raise ValueError("give exactly one of n_steps and t_final")
@@ -322,20 +331,34 @@ class AdaptiveIntegrator:
             raise ValueError(f"save_every must be a positive int, got {save_every!r}")
         if save_every < 1:
             raise ValueError(f"save_every must be a positive int, got {save_every!r}")
+        if t_final is not None:
+            if not (isinstance(t_final, numbers.Real) and math.isfinite(t_final)):
+                raise ValueError(f"t_final must be a finite real number, got {t_final!r}")
+            if t_final <= t0:
+                raise ValueError(f"t_final must be after t0 = {t0}, got {t_final!r}")
         qh, ph, extended_params, prm = self._start(q0, v0, p0, t0, params)
-        if n_steps is not None:
-            run = self.integrator.integrate(
-                qh, p0=ph, h=float(h), n_steps=n_steps, params=extended_params,
-                save_every=save_every,
-            )  # fmt: skip
-            return self._trajectory(run, prm)
-        if not (isinstance(t_final, numbers.Real) and math.isfinite(t_final)):
-            raise ValueError(f"t_final must be a finite real number, got {t_final!r}")
-        if t_final <= t0:
-            raise ValueError(f"t_final must be after t0 = {t0}, got {t_final!r}")
-        return self._trajectory(
-            self._run_to(qh, ph, float(h), float(t_final), extended_params, save_every), prm
-        )
+        try:
+            if n_steps is not None:
+                run = self.integrator.integrate(
+                    qh, p0=ph, h=float(h), n_steps=n_steps, params=extended_params,
+                    save_every=save_every,
+                )  # fmt: skip
+            else:
+                run = self._run_to(qh, ph, float(h), float(t_final), extended_params, save_every)
+        except ConvergenceError as exc:
+            raise self._physical_failure(exc, prm) from exc
+        return self._trajectory(run, prm)
+
+    def _physical_failure(self, exc: ConvergenceError, prm: NDArray) -> ConvergenceError:
+        """``exc`` of the extended system, its partial run in physical time and coordinates."""
+        partial = None if exc.partial is None else self._trajectory(exc.partial, prm)
+        t = exc.t if partial is None else float(partial.t[-1])
+        return ConvergenceError(
+            f"in fictitious time tau: {exc} The failing step starts at physical time "
+            f"t = {t:.6g}; .partial holds the states before it in physical time. A smaller "
+            "h, or a g that is smaller where the motion is fast, may help.",
+            step=exc.step, t=t, residual=exc.residual, partial=partial,
+        )  # fmt: skip
 
     def _run_to(self, qh, ph, h, t_final, params, save_every) -> Trajectory:
         """Chunks of steps until the clock passes ``t_final``, then a landing step.
@@ -348,8 +371,17 @@ class AdaptiveIntegrator:
         tau = 0.0
         chunk = _FIRST_CHUNK
         while True:
-            run = integ.integrate(rows.q[-1], p0=rows.p[-1], h=h, n_steps=chunk, t0=tau,
-                                  params=params)  # fmt: skip
+            try:
+                run = integ.integrate(rows.q[-1], p0=rows.p[-1], h=h, n_steps=chunk, t0=tau,
+                                      params=params)  # fmt: skip
+            except ConvergenceError as exc:
+                # the chunks before and the failing chunk's good steps, as one partial run
+                before = len(rows.tau) - 1
+                if exc.partial is not None:
+                    rows.extend(exc.partial, len(exc.partial) - 1)
+                exc.step += before
+                exc.partial = rows.trajectory(self.transform.extended, save_every)
+                raise
             rows.work += run.total_newton_iterations
             rows.worst = max(rows.worst, run.max_residual)
             clock = run.q[:, -1]

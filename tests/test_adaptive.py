@@ -150,3 +150,17 @@ def test_bad_input_is_named(kepler, adaptive):
         gvi.AdaptiveIntegrator(kepler.system, g=x).integrate(
             [-1.0, 0.0], [0.0, 1.0], h=0.1, n_steps=2
         )
+
+
+def test_a_failed_run_keeps_its_states_in_physical_time(kepler, adaptive):
+    """h = 1.5 is far too long at pericentre: the second step fails, the first is kept."""
+    for run in ({"n_steps": 400}, {"t_final": 300.0}):
+        with pytest.raises(gvi.ConvergenceError, match="physical time") as failure:
+            adaptive.integrate(kepler.q0, kepler.v0, h=1.5, **run)
+        error = failure.value
+        assert error.step == 1
+        partial = error.partial
+        assert isinstance(partial, gvi.AdaptiveTrajectory) and partial.system is kepler.system
+        assert partial.q.shape == (2, 2) and partial.tau[-1] == 1.5
+        assert error.t == partial.t[-1] > 0.0  # physical time of the last good state
+        np.testing.assert_array_equal(partial.q[0], kepler.q0)
