@@ -57,7 +57,7 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import ConvergenceError
-from .integrator import Integrator
+from .integrator import Integrator, state_vector
 from .method import Galerkin
 from .system import LagrangianSystem
 from .trajectory import Trajectory
@@ -230,20 +230,13 @@ class AdaptiveIntegrator:
     def _start(self, q0, v0, p0, t0, params):
         system = self.system
         prm = system.parameter_vector(params)
-        q0 = np.asarray(q0, dtype=float)
-        if q0.shape != (system.n,):
-            raise ValueError(f"q0 must have shape ({system.n},), got {q0.shape}")
+        q0 = state_vector("q0", q0, system.n)
         if (v0 is None) == (p0 is None):
             raise ValueError("give exactly one of v0 and p0")
         named = dict(zip(system.params, prm, strict=True))
         if p0 is None:
-            v0 = np.asarray(v0, dtype=float)
-            if v0.shape != (system.n,):
-                raise ValueError(f"v0 must have shape ({system.n},), got {v0.shape}")
-            p0 = system.legendre(q0, v0, 0.0, named)
-        p0 = np.asarray(p0, dtype=float)
-        if p0.shape != (system.n,):
-            raise ValueError(f"p0 must have shape ({system.n},), got {p0.shape}")
+            p0 = system.legendre(q0, state_vector("v0", v0, system.n), 0.0, named)
+        p0 = state_vector("p0", p0, system.n)
         rate = float(self.transform.rate(q0, prm))
         if not (math.isfinite(rate) and rate > 0):
             raise ValueError(f"g(q0) must be positive and finite, got {rate!r}")
@@ -444,7 +437,6 @@ class _Rows:
     iterations: list
     work: int = 0
     worst: float = 0.0
-    reduced: list | None = None
 
     @classmethod
     def start(cls, q: NDArray, p: NDArray) -> _Rows:

@@ -37,6 +37,19 @@ _STATUS_MESSAGES = {
 }
 
 
+def state_vector(name: str, x: ArrayLike, n: int) -> NDArray[np.float64]:
+    """``x`` as a finite float array of shape (n,); ``name`` in the error otherwise."""
+    try:
+        arr = np.array(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be an array of real numbers, got {x!r}") from exc
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must have shape ({n},), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} contains NaN or inf: {arr}")
+    return arr
+
+
 class Integrator:
     r"""Galerkin variational integrator of a :class:`LagrangianSystem`.
 
@@ -217,6 +230,7 @@ class Integrator:
         key = codegen.signature(self._spec, "source", "")
         return codegen.render_module(self._spec, key)
 
+    @cached_property
     def _loop_arguments(self):
         """The system's part of every loop's arguments: (fn, traits, pattern, periodic).
 
@@ -224,12 +238,6 @@ class Integrator:
         costs about 0.2 ms a call, which many short runs (adaptive landing steps,
         ensembles, ``step``) would pay every time.
         """
-        kept = self.__dict__.get("_kept_loop_arguments")
-        if kept is None:
-            kept = self.__dict__["_kept_loop_arguments"] = self._build_loop_arguments()
-        return kept
-
-    def _build_loop_arguments(self):
         from .loops.traits import AUTONOMOUS, BAND, HAS_FV, HAS_LQV, N_TRAITS
 
         spec = self._summary
@@ -264,15 +272,7 @@ class Integrator:
 
     # ------------------------------------------------------------ validation
     def _state(self, name: str, x: ArrayLike) -> NDArray[np.float64]:
-        try:
-            arr = np.array(x, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise TypeError(f"{name} must be an array of real numbers, got {x!r}") from exc
-        if arr.shape != (self.system.n,):
-            raise ValueError(f"{name} must have shape ({self.system.n},), got {arr.shape}")
-        if not np.all(np.isfinite(arr)):
-            raise ValueError(f"{name} contains NaN or inf: {arr}")
-        return arr
+        return state_vector(name, x, self.system.n)
 
     @staticmethod
     def _step_size(h: float) -> float:
@@ -415,7 +415,7 @@ class Integrator:
         from .loops.readiness import ensure_loops
 
         ensure_loops()
-        model = self._loop_arguments()
+        model = self._loop_arguments
         newton = (self.tol, self.maxiter)
         if path == "explicit":
             return run_explicit(system, self._summary, model, run, out.arrays)

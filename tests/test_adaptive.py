@@ -69,6 +69,7 @@ def test_lands_on_the_final_time_with_steps_following_g(kepler, adaptive):
     traj = adaptive.integrate(kepler.q0, kepler.v0, h=0.05, t_final=t_final)
     assert traj.t[-1] == t_final
     assert np.all(np.diff(traj.t) > 0)
+    np.testing.assert_array_equal(traj.step_sizes, np.diff(traj.t))
     # the physical step is the quadrature of g over the step: g(q_k) h to O(h)
     h = np.diff(traj.tau)[:-1]
     g = adaptive.transform.rate(traj.q[:-2])
@@ -140,6 +141,15 @@ def test_bad_input_is_named(kepler, adaptive):
         gvi.AdaptiveIntegrator(kepler.system, g=R * vx)
     with pytest.raises(TypeError, match="g must be"):
         gvi.AdaptiveIntegrator(kepler.system, g="r")
+    damped = gvi.LagrangianSystem(vx**2 / 2 - x**2 / 2, [x], [vx], forces=[-vx / 10])
+    with pytest.raises(ValueError, match="constraints or forces"):
+        gvi.AdaptiveIntegrator(damped, g=x**2 + 1)
+    clock = sp.Symbol("t_clock")
+    clashing = gvi.LagrangianSystem(vx**2 / 2 - clock**2 / 2, [clock], [vx])
+    with pytest.raises(ValueError, match="reserved symbols"):
+        gvi.AdaptiveIntegrator(clashing, g=clock**2 + 1)
+    with pytest.raises(ValueError, match="q0 must have shape"):
+        adaptive.integrate([1.0], kepler.v0, h=0.1, n_steps=3)
     with pytest.raises(ValueError, match="exactly one of n_steps and t_final"):
         adaptive.integrate(kepler.q0, kepler.v0, h=0.1)
     with pytest.raises(ValueError, match="h must be"):

@@ -152,8 +152,8 @@ def test_time_dependent_kernel_is_not_autonomous():
     assert damped._spec.autonomous
     from galerkin_vi.loops.traits import AUTONOMOUS
 
-    assert driven._loop_arguments()[1][AUTONOMOUS] == 0
-    assert damped._loop_arguments()[1][AUTONOMOUS] == 1
+    assert driven._loop_arguments[1][AUTONOMOUS] == 0
+    assert damped._loop_arguments[1][AUTONOMOUS] == 1
     # a force depending on t makes an autonomous L non-autonomous too
     forced = problems.forced_pendulum().system
     assert forced.structure.forced and not forced.structure.autonomous
