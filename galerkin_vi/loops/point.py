@@ -53,6 +53,7 @@ __all__ = [
     "point_constraint_jacobian",
     "point_constraint_rate",
     "point_gradient",
+    "point_gradient_row",
     "point_hessian",
 ]
 
@@ -93,6 +94,12 @@ def _emit_call(context, builder, signature, args, returns_double: bool):
     pointers = []
     for array_type, value in zip(signature.args[2:], arrays, strict=True):
         pointers.append(context.make_array(array_type)(context, builder, value).data)
+    loaded = _call_pointers(builder, address, t, pointers, returns_double)
+    return loaded if returns_double else context.get_dummy_value()
+
+
+def _call_pointers(builder, address, t, pointers, returns_double: bool):
+    """Emit ``f(&result, &error, t, *pointers)``; the loaded result, or None."""
     double = ir.DoubleType()
     opaque = ir.IntType(8).as_pointer()
     result = cgutils.alloca_once(builder, double)
@@ -103,7 +110,7 @@ def _emit_call(context, builder, signature, args, returns_double: bool):
     )
     function = builder.inttoptr(address, function_type.as_pointer())
     builder.call(function, [result, error, t, *pointers])
-    return builder.load(result) if returns_double else context.get_dummy_value()
+    return builder.load(result) if returns_double else None
 
 
 def _typer(address, t, arrays, returns_double=False):
@@ -117,6 +124,38 @@ def _typer(address, t, arrays, returns_double=False):
     def codegen(context, builder, sig, args):
         t_value = context.cast(builder, args[1], sig.args[1], types.float64)
         return _emit_call(context, builder, sig, [args[0], t_value, *args[2:]], returns_double)
+
+    return signature, codegen
+
+
+@intrinsic
+def _call_gradient_row(typingctx, address, t, q, v, prm, G, row, Lv):
+    """The gradient call with :math:`L_q + f` written into row ``row`` of the 2-D ``G``."""
+    if not (
+        isinstance(G, types.Array) and G.dtype == types.float64 and G.ndim == 2 and G.layout == "C"
+    ):
+        raise TypingError(f"the force table is a C-contiguous 2-D float64 array, got {G}")
+    if not isinstance(row, types.Integer):
+        raise TypingError(f"a row index is an integer, got {row}")
+    if not isinstance(address, types.Integer):
+        raise TypingError(f"a point function's address is an integer, got {address}")
+    _check_arrays((q, v, prm, Lv))
+    signature = types.void(address, t, q, v, prm, G, row, Lv)
+
+    def codegen(context, builder, sig, args):
+        address_value, t_value, q_value, v_value, prm_value, table, index, lv_value = args
+        t_value = context.cast(builder, t_value, sig.args[1], types.float64)
+        pointers = [
+            context.make_array(array_type)(context, builder, value).data
+            for array_type, value in ((q, q_value), (v, v_value), (prm, prm_value))
+        ]
+        table_struct = context.make_array(G)(context, builder, table)
+        index = context.cast(builder, index, row, types.intp)
+        zero = context.get_constant(types.intp, 0)
+        pointers.append(cgutils.get_item_pointer(context, builder, G, table_struct, [index, zero]))
+        pointers.append(context.make_array(Lv)(context, builder, lv_value).data)
+        _call_pointers(builder, address_value, t_value, pointers, returns_double=False)
+        return context.get_dummy_value()
 
     return signature, codegen
 
@@ -151,6 +190,16 @@ def _call9(typingctx, address, t, a1, a2, a3, a4, a5, a6, a7, a8, a9):
 def point_gradient(fn, t, q, v, prm, Lq, Lv):
     """Write :math:`L_q + f` into ``Lq`` and :math:`L_v` into ``Lv`` at (t, q, v)."""
     _call5(fn[GRADIENT], t, q, v, prm, Lq, Lv)
+
+
+@kernel
+def point_gradient_row(fn, t, q, v, prm, G, row, Lv):
+    """As :func:`point_gradient`, with :math:`L_q + f` written into ``G[row, :]``.
+
+    The stage form keeps the forces of its stages as the rows of one table;
+    writing them in place saves a copy per stage and sweep.
+    """
+    _call_gradient_row(fn[GRADIENT], t, q, v, prm, G, row, Lv)
 
 
 @kernel
