@@ -191,9 +191,10 @@ def test_lu_solve_matches_numpy(data):
     expected = np.linalg.solve(A, rhs)
     scale = max(1.0, np.abs(expected).max())
     assert np.abs(x - expected).max() <= 1e-14 * cond * scale  # measured <= 1.6e-16 cond
-    # P A = L U with unit lower L and partial pivoting (|L| <= 1)
+    # P A = L U with unit lower L and partial pivoting (|L| <= 1); the factors' diagonal
+    # holds 1/u_ii
     L = np.tril(lu, -1) + np.eye(len(A))
-    U = np.triu(lu)
+    U = np.triu(lu, 1) + np.diag(1.0 / np.diag(lu))
     np.testing.assert_allclose(
         L @ U, _permuted(A, piv), rtol=0, atol=1e-13 * max(1.0, np.abs(A).max())
     )

@@ -330,7 +330,7 @@ def constrained_loop(
             for a in range(n):
                 p_tilde[a] = G[s, a]
             # velocity guess: the polynomial's derivative at the step's end
-            interpolate(r - 1, h, qk, C, Phi, D, Q, V)
+            interpolate(r - 1, 1.0 / h, qk, C, Phi, D, Q, V)
             for a in range(n):
                 vk[a] = V[a]
                 Q[a] = qk[a] + C[s, a]

@@ -43,7 +43,7 @@ from .linalg import (
     solve_jacobian,
     unknown,
 )
-from .point import point_gradient, point_hessian
+from .point import point_gradient, point_gradient_row, point_hessian
 from .traits import HAS_FV
 
 __all__ = [
@@ -68,10 +68,11 @@ STALE_RETRY = 16
 def assemble_gradient(fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, G):
     """G[nu] = dL_d/dq^nu for all nu = 0..s."""
     r = b.shape[0]
+    inv_h = 1.0 / h
     s1, n = C.shape
     G[:, :] = 0.0
     for i in range(r):
-        interpolate(i, h, qk, C, Phi, D, Q, V)
+        interpolate(i, inv_h, qk, C, Phi, D, Q, V)
         point_gradient(fn, t0 + c[i] * h, Q, V, prm, Lq, Lv)
         for nu in range(s1):
             wq = b[i] * h * Phi[i, nu]
@@ -96,10 +97,11 @@ def momentum_increment(fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, out):
     """
     r = b.shape[0]
     n = qk.shape[0]
+    inv_h = 1.0 / h
     for a in range(n):
         out[a] = 0.0
     for i in range(r):
-        interpolate(i, h, qk, C, Phi, D, Q, V)
+        interpolate(i, inv_h, qk, C, Phi, D, Q, V)
         point_gradient(fn, t0 + c[i] * h, Q, V, prm, Lq, Lv)
         for a in range(n):
             out[a] += b[i] * Lq[a]
@@ -124,10 +126,11 @@ def assemble_newton(
     r = b.shape[0]
     s1, n = C.shape
     s = s1 - 1
+    inv_h = 1.0 / h
     G[:, :] = 0.0
     K[:, :] = 0.0
     for i in range(r):
-        interpolate(i, h, qk, C, Phi, D, Q, V)
+        interpolate(i, inv_h, qk, C, Phi, D, Q, V)
         point_hessian(fn, t0 + c[i] * h, Q, V, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
         for nu in range(s1):
             wq = b[i] * h * Phi[i, nu]
@@ -230,6 +233,10 @@ def general_loop(
     to their own coordinates, :math:`\max_{\nu,a} |\delta C^\nu_a| /
     (1 + |q_{k,a}| + |C^\nu_a|)`.
 
+    The residual rows are summed from tables of the gradients at the quadrature
+    points with weights computed once per run (``WQ``, ``WV``), and the
+    gradients are written into those tables in place.
+
     The new momentum is :math:`p_k` plus :func:`momentum_increment`, added
     with compensated summation like the positions. Saves rows at steps k with
     k % save_every == 0 and at the last step. The solve is written into the step
@@ -245,6 +252,14 @@ def general_loop(
     # unpacked once, before the first step: no tuple and no reference counts per step
     Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = make_work(s, n, traits, pattern)
     F = np.zeros((r, n))  # L_q + f at the quadrature points, of the last gradient sweep
+    FV = np.zeros((r, n))  # L_v at the quadrature points
+    # G^nu = sum_i WQ[nu, i] (L_q + f)^(i) + WV[nu, i] L_v^(i), nu < s: the residual's rows
+    WQ = np.zeros((s, r))
+    WV = np.zeros((s, r))
+    for nu in range(s):
+        for i in range(r):
+            WQ[nu, i] = b[i] * h * Phi[i, nu]
+            WV[nu, i] = b[i] * D[i, nu]
     dp = np.zeros(n)  # the step's momentum change
     p_lost = np.zeros(n)  # compensated summation of the momenta
     C = np.zeros((s1, n))
@@ -260,6 +275,7 @@ def general_loop(
     worst = 0.0
     factored = False  # K holds LU factors (of some earlier iterate)
     fresh_for = 0  # steps that start with a fresh Jacobian before stale factors are tried
+    inv_h = 1.0 / h
     for k in range(n_steps):
         tk = t0 + k * h
         if k > 0:
@@ -279,13 +295,16 @@ def general_loop(
         # far from the origin the round-off floor of C is that of q
         while its < maxiter:
             its += 1
-            G[:, :] = 0.0
             if fresh:
                 K[:, :] = 0.0
             for i in range(r):
-                interpolate(i, h, qk, C, Phi, D, Q, V)
+                interpolate(i, inv_h, qk, C, Phi, D, Q, V)
+                ti = tk + c[i] * h
                 if fresh:
-                    point_hessian(fn, tk + c[i] * h, Q, V, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
+                    point_hessian(fn, ti, Q, V, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
+                    for a in range(n):
+                        F[i, a] = Lq[a]
+                        FV[i, a] = Lv[a]
                     for nu in range(s):
                         for mu in range(1, s1):
                             add_block(
@@ -295,18 +314,14 @@ def general_loop(
                                 Lqv, Fv, traits, pattern, couplings,
                             )  # fmt: skip
                 else:
-                    point_gradient(fn, tk + c[i] * h, Q, V, prm, Lq, Lv)
-                for a in range(n):
-                    F[i, a] = Lq[a]
-                for nu in range(s1):
-                    wq = b[i] * h * Phi[i, nu]
-                    wv = b[i] * D[i, nu]
-                    for a in range(n):
-                        G[nu, a] += wq * Lq[a] + wv * Lv[a]
+                    point_gradient_row(fn, ti, Q, V, prm, F, FV, i)
+            # R^0 = p_k + G^0, R^nu = G^nu, summed in registers from the tables
             residual = 0.0
             for nu in range(s):
                 for a in range(n):
-                    val = G[nu, a] + (pk[a] if nu == 0 else 0.0)
+                    val = pk[a] if nu == 0 else 0.0
+                    for i in range(r):
+                        val += WQ[nu, i] * F[i, a] + WV[nu, i] * FV[i, a]
                     R[unknown(nu, a, s, n, banded)] = -val
                     if not abs(val) <= residual:  # also catches NaN
                         residual = abs(val)
@@ -379,10 +394,9 @@ def general_loop(
             # the last sweep's gradients are those at the solution when it moved nothing
             if not current:
                 for i in range(r):
-                    interpolate(i, h, qk, C, Phi, D, Q, V)
-                    point_gradient(fn, tk + c[i] * h, Q, V, prm, Lq, Lv)
-                    for a in range(n):
-                        F[i, a] = Lq[a]
+                    interpolate(i, inv_h, qk, C, Phi, D, Q, V)
+                    ti = tk + c[i] * h
+                    point_gradient_row(fn, ti, Q, V, prm, F, FV, i)
             for a in range(n):
                 acc = 0.0
                 for i in range(r):

@@ -128,32 +128,47 @@ def _typer(address, t, arrays, returns_double=False):
     return signature, codegen
 
 
+def _is_table(array) -> bool:
+    return (
+        isinstance(array, types.Array)
+        and array.dtype == types.float64
+        and array.ndim == 2
+        and array.layout == "C"
+    )
+
+
 @intrinsic
-def _call_gradient_row(typingctx, address, t, q, v, prm, G, row, Lv):
-    """The gradient call with :math:`L_q + f` written into row ``row`` of the 2-D ``G``."""
-    if not (
-        isinstance(G, types.Array) and G.dtype == types.float64 and G.ndim == 2 and G.layout == "C"
-    ):
+def _call_gradient_row(typingctx, address, t, q, v, prm, G, Gv, row):
+    """The gradient call with :math:`L_q + f` written into row ``row`` of the 2-D ``G``,
+    and :math:`L_v` into row ``row`` of ``Gv`` (2-D) or into ``Gv`` (a vector)."""
+    if not _is_table(G):
         raise TypingError(f"the force table is a C-contiguous 2-D float64 array, got {G}")
     if not isinstance(row, types.Integer):
         raise TypingError(f"a row index is an integer, got {row}")
     if not isinstance(address, types.Integer):
         raise TypingError(f"a point function's address is an integer, got {address}")
-    _check_arrays((q, v, prm, Lv))
-    signature = types.void(address, t, q, v, prm, G, row, Lv)
+    _check_arrays((q, v, prm))
+    if not _is_table(Gv):
+        _check_arrays((Gv,))
+    signature = types.void(address, t, q, v, prm, G, Gv, row)
 
     def codegen(context, builder, sig, args):
-        address_value, t_value, q_value, v_value, prm_value, table, index, lv_value = args
+        address_value, t_value, q_value, v_value, prm_value, table, table_v, index = args
         t_value = context.cast(builder, t_value, sig.args[1], types.float64)
         pointers = [
             context.make_array(array_type)(context, builder, value).data
             for array_type, value in ((q, q_value), (v, v_value), (prm, prm_value))
         ]
-        table_struct = context.make_array(G)(context, builder, table)
         index = context.cast(builder, index, row, types.intp)
         zero = context.get_constant(types.intp, 0)
-        pointers.append(cgutils.get_item_pointer(context, builder, G, table_struct, [index, zero]))
-        pointers.append(context.make_array(Lv)(context, builder, lv_value).data)
+        for array_type, value in ((G, table), (Gv, table_v)):
+            struct = context.make_array(array_type)(context, builder, value)
+            if array_type.ndim == 2:
+                pointers.append(
+                    cgutils.get_item_pointer(context, builder, array_type, struct, [index, zero])
+                )
+            else:
+                pointers.append(struct.data)
         _call_pointers(builder, address_value, t_value, pointers, returns_double=False)
         return context.get_dummy_value()
 
@@ -193,13 +208,14 @@ def point_gradient(fn, t, q, v, prm, Lq, Lv):
 
 
 @kernel
-def point_gradient_row(fn, t, q, v, prm, G, row, Lv):
-    """As :func:`point_gradient`, with :math:`L_q + f` written into ``G[row, :]``.
+def point_gradient_row(fn, t, q, v, prm, G, Gv, row):
+    """As :func:`point_gradient`, with :math:`L_q + f` written into ``G[row, :]`` and
+    :math:`L_v` into ``Gv[row, :]`` (``Gv`` a table) or ``Gv`` (a vector).
 
-    The stage form keeps the forces of its stages as the rows of one table;
-    writing them in place saves a copy per stage and sweep.
+    The loops keep the gradients of their quadrature points as the rows of
+    tables; writing them in place saves a copy per point and sweep.
     """
-    _call_gradient_row(fn[GRADIENT], t, q, v, prm, G, row, Lv)
+    _call_gradient_row(fn[GRADIENT], t, q, v, prm, G, Gv, row)
 
 
 @kernel

@@ -349,7 +349,7 @@ def stage_form_loop(
                                 pattern, None,
                             )  # fmt: skip
                     else:
-                        point_gradient_row(fn, tj, Q, zero, prm, FI, jl, Lv)
+                        point_gradient_row(fn, tj, Q, zero, prm, FI, Lv, jl)
                 residual = 0.0
                 increment = 0.0
                 size = step_size
@@ -474,7 +474,7 @@ def stage_form_loop(
                 for a in range(n):
                     Q[a] = qk[a] + Z[jl, a]
                 tj = 0.0 if autonomous else tk + c[j] * h
-                point_gradient_row(fn, tj, Q, zero, prm, FI, jl, Lv)
+                point_gradient_row(fn, tj, Q, zero, prm, FI, Lv, jl)
             for jl in range(u):
                 for a in range(n):
                     F[implicit[jl], a] = FI[jl, a]
