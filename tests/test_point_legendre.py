@@ -1,0 +1,64 @@
+"""The Legendre transform at the initial state through the compiled Hessian point function."""
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import galerkin_vi as gvi
+from galerkin_vi.errors import DegenerateLagrangianError
+
+
+def _systems():
+    t = sp.Symbol("t")
+    q1, q2, v1, v2, k = sp.symbols("q1 q2 v1 v2 k")
+    # non-separable (mass depends on q), a gauge term a(t).v, a parameter
+    coupled = gvi.LagrangianSystem(
+        (2 + sp.cos(q2)) * v1**2 / 2 + v1 * v2 * sp.sin(q1) / 3 + v2**2 / 2
+        + sp.cos(t) * v1 / 5 - k * (q1**2 + q2**2) / 2,
+        [q1, q2], [v1, v2], t=t, params={k: 1.5},
+    )  # fmt: skip
+    # not quadratic in v: the momenta's velocities need Newton (the NumPy path)
+    quartic = gvi.LagrangianSystem(v1**2 / 2 + v1**4 / 12 - q1**2 / 2, [q1], [v1])
+    return {"coupled": coupled, "quartic": quartic}
+
+
+@pytest.mark.parametrize("name", ["coupled", "quartic"])
+def test_initial_momenta_equal_the_numpy_transform(name):
+    system = _systems()[name]
+    integ = gvi.Integrator(system, gvi.Galerkin(2))
+    n = system.n
+    q0, v0 = np.linspace(0.3, 0.7, n), np.linspace(-0.4, 0.2, n)
+    t0 = 0.25
+    traj = integ.integrate(q0, v0, h=0.01, n_steps=3, t0=t0, params={"k": 2.0} if n == 2 else None)
+    assert integ._point_legendre is not None  # the compiled path was taken
+    expected = system.legendre(q0, v0, t0, {"k": 2.0} if n == 2 else None)
+    np.testing.assert_allclose(traj.p[0], expected, rtol=1e-14, atol=1e-15)
+    # and back: from the momenta, the same run (velocities by one solve or by Newton)
+    again = integ.integrate(
+        q0, p0=traj.p[0], h=0.01, n_steps=3, t0=t0, params={"k": 2.0} if n == 2 else None
+    )
+    np.testing.assert_allclose(again.q, traj.q, rtol=0, atol=1e-14)
+
+
+def test_singular_mass_matrix_is_still_reported():
+    q, v = sp.symbols("q v")
+    system = gvi.LagrangianSystem(q**2 * v**2 / 2 - q**2 / 2, [q], [v])
+    integ = gvi.Integrator(system, gvi.Galerkin(2))
+    with pytest.raises(DegenerateLagrangianError, match="singular"):
+        integ.integrate([0.0], [0.1], h=0.01, n_steps=2)
+
+
+def test_the_compiled_path_skips_the_numpy_expressions(monkeypatch):
+    system = _systems()["coupled"]
+    integ = gvi.Integrator(system, gvi.Galerkin(2))
+    q0, v0 = np.array([0.3, 0.7]), np.array([-0.4, 0.2])
+    before = integ.integrate(q0, v0, h=0.01, n_steps=3)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("NumPy evaluation on the compiled path")
+
+    monkeypatch.setattr(system, "evaluate", refuse)
+    after = integ.integrate(q0, v0, h=0.01, n_steps=3)
+    from_momenta = integ.integrate(q0, p0=before.p[0], h=0.01, n_steps=3)
+    np.testing.assert_array_equal(after.q, before.q)
+    np.testing.assert_allclose(from_momenta.q, before.q, rtol=0, atol=1e-14)
