@@ -302,11 +302,11 @@ class Integrator:
 
         return PointLegendre(hessian.address, self.system.n)
 
-    def _initial_momentum(self, q0, v0, p0, t0, prm_dict, prm=None):
+    def _initial_momentum(self, q0, v0, p0, t0, prm):
         if (v0 is None) == (p0 is None):
             raise ValueError("give exactly one of v0 (velocities) and p0 (momenta)")
         system = self.system
-        fast = self._point_legendre if prm is not None else None
+        fast = self._point_legendre
         if fast is not None:
             # the compiled point functions: a few microseconds instead of ~170 (NumPy);
             # None means singular or not finite, which the NumPy path below reports
@@ -316,11 +316,12 @@ class Integrator:
             elif system.structure.quadratic_in_v:
                 p = self._state("p0", p0)
                 v = fast.velocities_of_quadratic(t0, q0, p, prm)
-                p, v = (p, v) if v is not None else (None, None)
+                p = p if v is not None else None
             else:
                 p = None
             if p is not None and np.isfinite(p).all() and np.isfinite(v).all():
                 return np.asarray(p, dtype=float), np.asarray(v, dtype=float)
+        prm_dict = dict(zip(system.params, prm, strict=True))
         if v0 is not None:
             v = self._state("v0", v0)
             m = system.evaluate("Lvv", t0, q0, v, system.parameter_vector(prm_dict))
@@ -422,8 +423,7 @@ class Integrator:
     def _initial_state(self, q0, v0, p0, t0, prm, project):
         """(q0, p0, v0) from the user's data: Legendre transform, constraints checked."""
         system = self.system
-        prm_dict = dict(zip(system.params, prm, strict=True))
-        p0_arr, v0_arr = self._initial_momentum(q0, v0, p0, t0, prm_dict, prm)
+        p0_arr, v0_arr = self._initial_momentum(q0, v0, p0, t0, prm)
         if system.m:
             q0, p0_arr, v0_arr = consistent_initial_state(
                 system, t0, q0, p0_arr, v0_arr, prm, bool(project)
