@@ -146,7 +146,12 @@ def test_lyapunov_exponent_of_a_linear_flow():
 # ------------------------------------------------------------------ many DOF (reduced)
 def test_chain_uses_the_banded_solve_and_cost_grows_linearly():
     # in a child with one BLAS thread: see stress.ONE_BLAS_THREAD
-    rows = stress.chain_cost_in_subprocess(DEFAULT_CHAIN_SIZES, dense_reference=False, log=None)
+    # 2000 steps: with 200, N = 10 ran 1 ms against a 1-step call of 0.3-1 ms, and the
+    # difference that gives the cost per step once came out negative (a clean-clone CI run
+    # on 2026-11-26, after the stage form's sums got faster)
+    rows = stress.chain_cost_in_subprocess(
+        DEFAULT_CHAIN_SIZES, n_steps=2000, dense_reference=False, log=None
+    )
     for row in rows:
         assert row["banded"]
         assert row["uses_constant_mass"] == {"constant_mass": True, "full_newton": False}
