@@ -287,12 +287,9 @@ class Integrator:
     def _point_legendre(self):
         """:class:`PointLegendre` of the compiled Hessian, or None where it does not apply.
 
-        Numba backend, a loop that compiles the Hessian (not the explicit one),
-        dense storage, at most 64 coordinates.
+        Numba backend and a loop that compiles the Hessian (not the explicit one).
         """
-        if self.backend != "numba" or self.kernel_path == "explicit" or self.system.n > 64:
-            return None
-        if self._summary.banded:
+        if self.backend != "numba" or self.kernel_path == "explicit":
             return None
         self._loop_arguments  # noqa: B018 - compiles the point functions the loop needs
         hessian = self._points.compiled.get("point_hessian")
@@ -300,7 +297,8 @@ class Integrator:
             return None
         from .point_legendre import PointLegendre
 
-        return PointLegendre(hessian.address, self.system.n)
+        pattern = self._summary.pattern if self._summary.banded else None
+        return PointLegendre(hessian.address, self.system.n, pattern)
 
     def _initial_momentum(self, q0, v0, p0, t0, prm):
         if (v0 is None) == (p0 is None):

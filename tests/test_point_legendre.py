@@ -5,6 +5,7 @@ import pytest
 import sympy as sp
 
 import galerkin_vi as gvi
+from galerkin_vi import problems
 from galerkin_vi.errors import DegenerateLagrangianError
 
 
@@ -60,5 +61,36 @@ def test_the_compiled_path_skips_the_numpy_expressions(monkeypatch):
     monkeypatch.setattr(system, "evaluate", refuse)
     after = integ.integrate(q0, v0, h=0.01, n_steps=3)
     from_momenta = integ.integrate(q0, p0=before.p[0], h=0.01, n_steps=3)
+    np.testing.assert_array_equal(after.q, before.q)
+    np.testing.assert_allclose(from_momenta.q, before.q, rtol=0, atol=1e-14)
+
+
+def test_a_matrix_found_regular_once_does_not_hide_a_singular_one():
+    # L_vv = q^2: regular at q = 1, singular at q = 0; the same integrator for both
+    q, v = sp.symbols("q v")
+    system = gvi.LagrangianSystem(q**2 * v**2 / 2 - q**2 / 2, [q], [v])
+    integ = gvi.Integrator(system, gvi.Galerkin(2))
+    integ.integrate([1.0], [0.1], h=0.01, n_steps=2)
+    with pytest.raises(DegenerateLagrangianError, match="singular"):
+        integ.integrate([0.0], [0.1], h=0.01, n_steps=2)
+
+
+def test_banded_systems_take_the_compiled_path(monkeypatch):
+    # a 70-mass chain: banded storage of the second derivatives, more than 64 coordinates
+    chain = problems.spring_chain(70, beta=1.0)
+    system = chain.system
+    integ = gvi.Integrator(system, gvi.Galerkin(2, gvi.gauss_legendre(2)))
+    before = integ.integrate(chain.q0, chain.v0, h=0.1, n_steps=3)
+    assert integ._summary.banded
+    np.testing.assert_allclose(
+        before.p[0], system.legendre(chain.q0, chain.v0, 0.0), rtol=1e-15, atol=1e-15
+    )
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("NumPy evaluation on the compiled path")
+
+    monkeypatch.setattr(system, "evaluate", refuse)
+    after = integ.integrate(chain.q0, chain.v0, h=0.1, n_steps=3)
+    from_momenta = integ.integrate(chain.q0, p0=before.p[0], h=0.1, n_steps=3)
     np.testing.assert_array_equal(after.q, before.q)
     np.testing.assert_allclose(from_momenta.q, before.q, rtol=0, atol=1e-14)

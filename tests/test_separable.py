@@ -253,3 +253,39 @@ def test_failure_keeps_the_last_good_state():
     shorter = integrator.integrate([1.0], [0.0], h=0.05, n_steps=done)
     np.testing.assert_array_equal(partial.q[-1], shorter.q[-1])
     np.testing.assert_array_equal(partial.p[-1], shorter.p[-1])
+
+
+# ------------------------------------------------------- the switch to full Newton
+def test_the_constant_mass_iteration_hands_over_by_its_contraction_and_budget():
+    from galerkin_vi.loops.stage_form import too_slow
+
+    target = 1e-14
+    # no rate after one sweep, nothing to do at the target
+    assert not too_slow(1e-3, np.inf, 1, 0.2, 24, target)
+    assert not too_slow(1e-15, 1e-10, 5, 0.2, 24, target)
+    # contracting by 0.5 per sweep: too slow where a Newton iteration is cheap (cap 0.2) ...
+    assert too_slow(1e-6, 2e-6, 3, 0.2, 24, target)
+    # ... not where it is dear (cap 0.9), as long as the 27 sweeps to 1e-14 fit: 3 + 26.6
+    assert not too_slow(1e-6, 2e-6, 3, 0.9, 30, target)
+    assert too_slow(1e-6, 2e-6, 3, 0.9, 24, target)
+    # fast contraction always stays; divergence never does
+    assert not too_slow(1e-8, 1e-6, 2, 0.02, 15, target)
+    assert too_slow(2e-6, 1e-6, 2, 0.9, 24, target)
+
+
+@pytest.mark.parametrize("s", [4, 6])
+def test_a_long_chain_keeps_the_cheap_iteration_at_coarse_steps(monkeypatch, s):
+    # 60 masses, s - 1 implicit stages (Lobatto), h = 0.7: the sweeps contract by about
+    # 0.3-0.5, and a full Newton iteration costs tens of sweeps. Measured: 12.9 (s = 6)
+    # and 15.0 (s = 4) sweeps per step, 7x faster than full Newton's 7.1 and 6.8
+    # iterations; with the earlier cap of 0.2 the steps switched to full Newton (7.1, 6.9)
+    chain = problems.spring_chain(60, beta=1.0)
+    v0 = 0.5 * np.random.default_rng(3).standard_normal(60)
+    method = gvi.Galerkin(s, gvi.gauss_lobatto(s + 1))
+    run = {"h": 0.7, "n_steps": 60}
+    cheap = gvi.Integrator(chain.system, method).integrate(chain.q0, v0, **run)
+    monkeypatch.setattr(integrator_module, "MIN_UNKNOWNS_CONSTANT_MASS", 10**9)
+    newton = gvi.Integrator(chain.system, method).integrate(chain.q0, v0, **run)
+    assert np.abs(cheap.q - newton.q).max() <= 1e-12
+    # sweeps, not Newton iterations: the cheap iteration ran to the end of the steps
+    assert cheap.mean_newton_iterations > newton.mean_newton_iterations + 3

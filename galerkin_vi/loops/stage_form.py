@@ -47,14 +47,19 @@ from .linalg import (
 from .point import point_gradient, point_gradient_row, point_hessian
 from .traits import AUTONOMOUS
 
-__all__ = ["stage_form_loop"]
+__all__ = ["stage_form_loop", "too_slow"]
 
 # constant-mass iteration: switch to full Newton when an increment is more than
 # MASS_CONTRACTION * (number of unknowns) times the one before, capped at
 # MASS_CONTRACTION_MAX: a full Newton step costs relatively more with more unknowns
-# (measured break-even: ~0.02 for 2 unknowns, >0.1 from about 10)
+# (measured break-even: ~0.02 for 2 unknowns, >0.1 from about 10; on a 100-mass chain
+# with 5-7 implicit stages a Newton iteration costs about 35 sweeps, and a cap of 0.2
+# made steps of h >= 0.7 cost 10-20x what the sweeps at contractions 0.3-0.5 cost)
 MASS_CONTRACTION = 0.01
-MASS_CONTRACTION_MAX = 0.2
+MASS_CONTRACTION_MAX = 0.9
+# ... or when, at its contraction, it would not reach the tolerance within the
+# iterations left but this many, which full Newton keeps for itself
+NEWTON_RESERVE = 6
 # after a switch, steps that start with full Newton before the cheap iteration is retried
 MASS_RETRY = 64
 # sums over the stages, sum_j w_j T[j, a] for all a: from this many coordinates on as
@@ -63,6 +68,27 @@ MASS_RETRY = 64
 # the other form: outer solar system (n = 18) 10-15 % faster, FPU (6) 3-10 %; Kepler (2)
 # and the pendulum (1) 10-25 % slower. The order of the additions is the same.
 WIDE = 4
+
+
+@kernel
+def too_slow(increment, previous, its, contraction, budget, target):
+    r"""Whether the constant-mass iteration should hand over to full Newton.
+
+    After sweep ``its`` (1-based) with max-norm increments ``increment`` and
+    ``previous``: true when it contracts by less than ``contraction``,
+    :math:`\theta = |\delta_k| / |\delta_{k-1}| > \theta_{\max}`, or when at
+    that rate it would not reach ``target`` within ``budget`` sweeps,
+    :math:`k + \log(\text{target} / |\delta_k|) / \log\theta > \text{budget}`.
+    Never after the first sweep (no rate yet) or once the increment is at the target.
+    """
+    if its < 2 or increment <= target:
+        return False
+    theta = increment / previous
+    if theta > contraction:
+        return True
+    if theta <= 0.0:
+        return False
+    return its + np.log(target / increment) / np.log(theta) > budget
 
 
 @kernel
@@ -171,8 +197,12 @@ def stage_form_loop(
     the iteration matrix is the block-diagonal :math:`I \otimes M` (fixed-point
     iteration on :math:`M Z = \text{offset} + h^2 \hat W F(Z)`: one gradient per
     implicit point and one solve with the constant :math:`M`, a division when it
-    is diagonal), handing over to full Newton when it contracts too slowly,
-    fails, or has used half of ``maxiter``; full Newton; and the LU factors
+    is diagonal), handing over to full Newton when it contracts by less than
+    ``min(MASS_CONTRACTION_MAX, MASS_CONTRACTION u n)`` per sweep (a Newton
+    iteration costs more sweeps the more unknowns there are), when at its
+    contraction :math:`\theta` it would need more than the sweeps left,
+    :math:`\log(\text{tol}\cdot\text{scale}/|\delta Z|)/\log\theta`
+    against ``maxiter - NEWTON_RESERVE``, or when it fails; full Newton; and the LU factors
     frozen once an increment is below ``FREEZE``. The iteration ends when an
     update leaves every stage position :math:`q_k + Z_i` bit-identical: the
     forces, and with them everything the step computes, are then a fixed point
@@ -266,6 +296,7 @@ def stage_form_loop(
         for jl in range(u):
             W2[il, jl] = h2 * stage_force[il, implicit[jl]]
     contraction = min(MASS_CONTRACTION_MAX, MASS_CONTRACTION * u * n)
+    budget = max(maxiter // 2, maxiter - NEWTON_RESERVE)  # sweeps of the cheap iteration
     worst = 0.0
     retry_in = 0
     have_start_force = False
@@ -460,12 +491,7 @@ def stage_form_loop(
                     current = not full
                     break
                 scale = 1.0 + max(size, base)
-                if (
-                    cheap
-                    and its >= 2
-                    and increment > contraction * previous
-                    and increment > tol * scale
-                ):
+                if cheap and too_slow(increment, previous, its, contraction, budget, tol * scale):
                     # too slow at this h (or diverging): exact Jacobian from here on
                     cheap = False
                     switched = True
@@ -475,8 +501,8 @@ def stage_form_loop(
                 if decision == CONVERGED:
                     status = STATUS_OK
                     break
-                if cheap and (decision != CONTINUE or 2 * its >= maxiter):
-                    # the cheap iteration leaves full Newton at least half of the iterations
+                if cheap and (decision != CONTINUE or its >= budget):
+                    # the cheap iteration leaves full Newton NEWTON_RESERVE iterations
                     cheap = False
                     switched = True
                     previous = np.inf
