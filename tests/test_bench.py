@@ -19,6 +19,7 @@ import warnings
 import numpy as np
 import peers
 import pytest
+import sympy as sp
 from peers import cases
 from peers import handwritten as hw
 from peers import workprecision as wp
@@ -328,3 +329,27 @@ def test_the_package_holds_no_peer_code():
     """The peers live in benchmarks/ only: galerkin_vi has no ``bench`` subpackage."""
     assert importlib.util.find_spec("galerkin_vi.bench") is None
     assert not hasattr(gvi, "bench")
+
+
+@pytest.mark.parametrize("e", [0.6, 0.9])
+def test_the_handwritten_adaptive_gauss_is_galerkin_vis_adaptive_method(e):
+    # benchmarks/adaptive.py's baseline: Gauss on K = r^1.5 (H - E) with time riding
+    # along, against AdaptiveIntegrator's Galerkin(s, Gauss(s)) on the transformed
+    # Lagrangian with its clock coordinate. Measured: equal steps, positions within
+    # 1.7e-14, momenta within 3.8e-13 (method errors 1e-5 to 2e-9)
+    from peers.poincare import kepler_poincare
+
+    problem = problems.kepler(e)
+    x, y = problem.system.q
+    g = gvi.encounter_scaling([sp.sqrt(x**2 + y**2)], 1.5)
+    t_final = 6 * math.pi
+    for s in (2, 3):
+        method = gvi.Galerkin(s, gvi.gauss_legendre(s))
+        ours = gvi.AdaptiveIntegrator(problem.system, method, g=g).integrate(
+            problem.q0, problem.v0, h=0.1, t_final=t_final
+        )
+        kernel = kepler_poincare(problem.q0, problem.v0, s, 0.1, t_final)
+        assert kernel.t == t_final
+        assert kernel.n_steps == ours.n_steps
+        assert np.abs(kernel.q - ours.q[-1]).max() <= 1e-12
+        assert np.abs(kernel.p - ours.p[-1]).max() <= 1e-11

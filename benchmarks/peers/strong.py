@@ -63,6 +63,7 @@ __all__ = [
     "nystrom_fixed_point",
     "run_irk",
     "run_nystrom",
+    "stage_sweep",
 ]
 
 _DIGITS = 40
@@ -250,6 +251,23 @@ def hamilton_rhs(problem, y, dy, prm):
         dy[n + a] = -dy[n + a] / hw._inverse_mass(problem, a, prm)
 
 
+@nb.njit(cache=True, inline="always")
+def stage_sweep(y, h, A, K, Y):
+    """Y_i = y + h sum_j A_ij K_j for every stage i; returns the largest change of an entry."""
+    change = 0.0
+    for i in range(K.shape[0]):
+        for a in range(y.shape[0]):
+            acc = 0.0
+            for j in range(K.shape[0]):
+                acc += A[i, j] * K[j, a]
+            new = y[a] + h * acc
+            delta = abs(new - Y[i, a])
+            if delta > change:
+                change = delta
+            Y[i, a] = new
+    return change
+
+
 @nb.njit(cache=True)
 def irk_fixed_point(
     problem, prm, y0, h, n_steps, save_every, A, b, X, maxiter, y_out, sweeps,
@@ -279,17 +297,7 @@ def irk_fixed_point(
         it = 0
         previous = np.inf
         while True:
-            change = 0.0
-            for i in range(s):
-                for a in range(m):
-                    acc = 0.0
-                    for j in range(s):
-                        acc += A[i, j] * K[j, a]
-                    new = y[a] + h * acc
-                    delta = abs(new - Y[i, a])
-                    if delta > change:
-                        change = delta
-                    Y[i, a] = new
+            change = stage_sweep(y, h, A, K, Y)
             if it > 0 and (change == 0.0 or (change >= previous and change < 1e-10)):
                 break
             if it >= maxiter or not change < 1e300:
