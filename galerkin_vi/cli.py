@@ -43,16 +43,41 @@ def _progress_bar(total: int):
     return tqdm(total=total, delay=2.0, unit="study", leave=False, disable=None)
 
 
+def study_count(selected: list, degrees: Sequence[int], families: Sequence[str]) -> int:
+    """Order studies ``verify`` runs: every degree and family, Lobatto only with constraints."""
+    return len(degrees) * sum(
+        len(families) if not problem.system.m else int("lobatto" in families)
+        for _, problem, _ in selected
+    )
+
+
+def _positive_int(text: str) -> int:
+    """argparse type: an int of at least 1 (a usage error, exit status 2, otherwise)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
 def _verify(args: argparse.Namespace) -> int:
     try:
         selected = _selected(args)
     except ValueError as exc:
         print(f"galerkin-vi verify: {exc}", file=sys.stderr)
         return 2
-    total = len(args.degrees) * sum(
-        len(args.families) if not problem.system.m else int("lobatto" in args.families)
-        for _, problem, _ in selected
-    )
+    total = study_count(selected, args.degrees, args.families)
+    if total == 0:
+        # a CI gate that tested nothing must not pass
+        what = "no problem" if not selected else "no study for the selected families"
+        print(
+            f"galerkin-vi verify: {what} selected (give --problems NAME ..., --problem "
+            "MODULE:ATTR, or a family that applies; constrained problems run Lobatto only)",
+            file=sys.stderr,
+        )
+        return 2
     bar = _progress_bar(total)
     first = [True]
 
@@ -168,7 +193,11 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
         help=f"library problems (default: none); one of {', '.join(sorted(PROBLEMS))}",
     )
     parser.add_argument(
-        "--degrees", nargs="+", type=int, default=[1, 2, 3, 4], help="degrees s (default 1-4)"
+        "--degrees",
+        nargs="+",
+        type=_positive_int,
+        default=[1, 2, 3, 4],
+        help="degrees s (default 1-4)",
     )
     parser.add_argument(
         "--families",
@@ -187,7 +216,7 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
         default=list(TARGETS),
         help="final relative errors of the time-to-error table",
     )
-    parser.add_argument("--n-start", type=int, default=16, help="first step count (16)")
+    parser.add_argument("--n-start", type=_positive_int, default=16, help="first step count (16)")
     parser.add_argument(
         "--step-factor", type=float, default=2.0, help="ratio of successive step counts (2)"
     )
@@ -198,7 +227,7 @@ def _add_bench(sub: argparse._SubParsersAction) -> None:
         metavar="SECONDS",
         help="a sweep stops once one run took longer than this (0.2)",
     )
-    parser.add_argument("--repeats", type=int, default=2, help="timed runs per point (2)")
+    parser.add_argument("--repeats", type=_positive_int, default=2, help="timed runs per point (2)")
     parser.add_argument(
         "--output", metavar="DIR", help="write work_precision.json, .md and <model>_*.png"
     )
@@ -221,7 +250,7 @@ def build_parser() -> argparse.ArgumentParser:
             "float64; higher degrees in mpmath at 40 digits (minutes). Also reports the largest "
             "energy error and momentum-map drift at the finest step. Exit status 1 when any "
             "measured order misses its prediction by more than 0.3 or a momentum map drifts "
-            "by more than 1e-10; 2 on bad arguments."
+            "by more than 1e-10; 2 on bad arguments or when nothing is selected."
         ),
     )
     verify.add_argument(
@@ -238,7 +267,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="a user's galerkin_vi.problems.Problem (or a callable returning one); repeatable",
     )
     verify.add_argument(
-        "--degrees", nargs="+", type=int, default=[1, 2, 3], help="degrees s (1 to 6 or more)"
+        "--degrees",
+        nargs="+",
+        type=_positive_int,
+        default=[1, 2, 3],
+        help="degrees s (1 to 6 or more)",
     )
     verify.add_argument(
         "--families",
@@ -251,7 +284,7 @@ def build_parser() -> argparse.ArgumentParser:
     verify.add_argument(
         "--step-counts",
         nargs="+",
-        type=int,
+        type=_positive_int,
         metavar="N",
         help="fixed numbers of steps instead of the automatic choice",
     )

@@ -115,6 +115,55 @@ class Trajectory:
         hidden = np.einsum("kja,ka->kj", jac, self.velocities()) + rate
         return np.max(np.abs(hidden), axis=-1)
 
+    def plot(self, coordinates: Sequence[int] | None = None, *, max_lines: int = 8):
+        r"""Positions, energy error and momenta against t, in one figure of three panels.
+
+        The energy panel shows :math:`|H_k - H_0| / \max(1, |H_0|)` on a log
+        scale: bounded for a symplectic method on an autonomous, unforced system
+        (a drift means the step is too large or the run failed); for forced or
+        time-dependent systems it is the energy's change, not an error.
+
+        Parameters
+        ----------
+        coordinates : sequence of int, optional
+            Indices of the coordinates to draw (default: the first ``max_lines``).
+        max_lines : int
+            At most this many coordinates by default (a 100-mass chain would
+            draw an unreadable tangle).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        import matplotlib.pyplot as plt
+
+        n = self.q.shape[1]
+        chosen = list(range(min(n, max_lines))) if coordinates is None else list(coordinates)
+        if not chosen or any(not 0 <= a < n for a in chosen):
+            raise ValueError(f"coordinates must be indices in [0, {n}), got {coordinates!r}")
+        names = [str(sym) for sym in self.system.q]
+        fig, (ax_q, ax_e, ax_p) = plt.subplots(3, 1, sharex=True, figsize=(7.0, 7.5))
+        for a in chosen:
+            ax_q.plot(self.t, self.q[:, a], label=names[a])
+            ax_p.plot(self.t, self.p[:, a], label=f"p_{names[a]}")
+        energy = self.energy()
+        change = np.abs(energy - energy[0]) / max(1.0, abs(float(energy[0])))
+        # a log scale cannot show exact zeros (the first point; steps that conserve H
+        # exactly): they are left out, not drawn at some floor that squashes the rest
+        shown = change > 0.0
+        ax_e.semilogy(self.t[shown], change[shown])
+        ax_q.set_ylabel("q")
+        ax_e.set_ylabel("|H - H0| / max(1, |H0|)")
+        ax_p.set_ylabel("p")
+        ax_p.set_xlabel("t")
+        for ax in (ax_q, ax_p):
+            if len(chosen) <= max_lines:
+                ax.legend(loc="upper right", fontsize="small")
+        subset = "" if len(chosen) == n else f" ({len(chosen)} of {n} coordinates)"
+        ax_q.set_title(f"{len(self)} saved states, {self.n_steps} steps{subset}")
+        fig.tight_layout()
+        return fig
+
     def _require_constraints(self, name: str) -> None:
         if not self.system.m:
             raise ValueError(f"{name}: the system has no constraints")

@@ -161,3 +161,42 @@ def test_warmup_compiles_or_loads_every_loop_and_says_where(capsys):
     assert sum(label in out for label, *_ in _runs()) == len(_runs())
     assert "done in" in out
     assert (loop_cache_dir() / MARKER).exists()
+
+
+def test_verify_with_nothing_selected_is_an_error_not_a_pass(capsys):
+    # a CI gate that ran no study must fail (it used to print "0 of 0 studies" and exit 0)
+    assert cli.main(["verify", "--problems"]) == 2
+    assert "no problem selected" in capsys.readouterr().err
+    # a constrained problem runs Lobatto only: Gauss alone selects no study
+    argv = ["verify", "--problems", "cartesian_pendulum", "--families", "gauss"]
+    assert cli.main(argv) == 2
+    assert "no study for the selected families" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["verify", "--degrees", "0"],
+        ["verify", "--degrees", "-1"],
+        ["verify", "--degrees", "two"],
+        ["verify", "--step-counts", "0"],
+        ["bench", "--problem", "m:a", "--degrees", "0"],
+        ["bench", "--problem", "m:a", "--repeats", "0"],
+    ],
+)
+def test_bad_counts_are_usage_errors(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "must be at least 1" in err or "is not an integer" in err
+
+
+def test_the_study_count_in_the_ci_how_to_is_the_tools():
+    # docs/howto/verify-orders-in-ci.md states how many studies the default run has
+    from pathlib import Path
+
+    page = Path(__file__).resolve().parents[1] / "docs" / "howto" / "verify-orders-in-ci.md"
+    args = cli.build_parser().parse_args(["verify"])
+    count = cli.study_count(cli._selected(args), args.degrees, args.families)
+    assert f"only): {count} studies" in page.read_text()
