@@ -289,3 +289,13 @@ def test_a_long_chain_keeps_the_cheap_iteration_at_coarse_steps(monkeypatch, s):
     assert np.abs(cheap.q - newton.q).max() <= 1e-12
     # sweeps, not Newton iterations: the cheap iteration ran to the end of the steps
     assert cheap.mean_newton_iterations > newton.mean_newton_iterations + 3
+
+
+def test_fast_contraction_needs_no_prediction():
+    from galerkin_vi.loops.stage_form import FAST_SWEEP, FAST_SWEEPS_LEFT, too_slow
+
+    # a sweep at FAST_SWEEP or faster gains 1.3 digits: FAST_SWEEPS_LEFT of them take an
+    # increment the size of q (1) to below 1e-16, so the shortcut never changes a decision
+    assert FAST_SWEEP**FAST_SWEEPS_LEFT < 1e-16
+    for its in range(2, 12):
+        assert not too_slow(1.0, 1.0 / FAST_SWEEP, its, 0.9, 24, 1e-16)
