@@ -41,7 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import handwritten as hw
-from .strong import gauss_fixed_point_tables, stage_sweep
+from .strong import extrapolate_stages, gauss_fixed_point_tables, stage_sweep
 
 __all__ = ["KeplerPoincareRun", "kepler_poincare"]
 
@@ -114,13 +114,7 @@ def kepler_poincare_run(y0, h, t_final, A, b, X, E, alpha, maxiter, max_steps):
     sweeps = 0
     for k in range(max_steps):
         if k > 0:
-            Kold[:, :] = K
-            for i in range(s):
-                for a in range(_STATE):
-                    acc = 0.0
-                    for j in range(s):
-                        acc += X[i, j] * Kold[j, a]
-                    K[i, a] = acc
+            extrapolate_stages(X, K, Kold)
         Kstart[:, :] = K
         its = _step(y, lost, h, A, b, K, Y, E, alpha, maxiter, new, new_lost)
         if its < 0:

@@ -62,6 +62,7 @@ __all__ = [
     "lobatto_fixed_point_tables",
     "nystrom_fixed_point",
     "run_irk",
+    "extrapolate_stages",
     "run_nystrom",
     "stage_sweep",
 ]
@@ -268,6 +269,19 @@ def stage_sweep(y, h, A, K, Y):
     return change
 
 
+@nb.njit(cache=True, inline="always")
+def extrapolate_stages(X, K, Kold):
+    """K_i <- sum_j X_ij K_j: the last step's stage values extrapolated to this step's
+    nodes (``Kold`` is work space)."""
+    Kold[:, :] = K
+    for i in range(K.shape[0]):
+        for a in range(K.shape[1]):
+            acc = 0.0
+            for j in range(K.shape[0]):
+                acc += X[i, j] * Kold[j, a]
+            K[i, a] = acc
+
+
 @nb.njit(cache=True)
 def irk_fixed_point(
     problem, prm, y0, h, n_steps, save_every, A, b, X, maxiter, y_out, sweeps,
@@ -287,13 +301,7 @@ def irk_fixed_point(
     saved = 1
     for k in range(n_steps):
         if k > 0:
-            Kold[:, :] = K
-            for i in range(s):
-                for a in range(m):
-                    acc = 0.0
-                    for j in range(s):
-                        acc += X[i, j] * Kold[j, a]
-                    K[i, a] = acc
+            extrapolate_stages(X, K, Kold)
         it = 0
         previous = np.inf
         while True:
