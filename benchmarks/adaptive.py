@@ -192,11 +192,13 @@ def study(case: Case, repeats: int, budget: float, rounds: int = 2) -> dict:
 
         def run_fixed(n, fixed=fixed):
             return fixed.integrate(case.q0, case.v0, h=case.t_final / n, n_steps=n,
-                                   params=case.params, save_every=max(1, n // 1000))  # fmt: skip
+                                   params=case.params, save_every=max(1, n // 1000),
+                                   on_failure="raise")  # fmt: skip
 
         def run_adaptive(h, adaptive=adaptive):
             return adaptive.integrate(case.q0, case.v0, h=h, t_final=case.t_final,
-                                      params=case.params, save_every=1000)  # fmt: skip
+                                      params=case.params, save_every=1000,
+                                      on_failure="raise")  # fmt: skip
 
         kernel = case.handwritten if family == "gauss" else None
 

@@ -426,7 +426,9 @@ def classify(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", gvi.InstabilityWarning)
         try:
-            traj = integrator.integrate(q0, v0, h=x / omega, n_steps=n_steps, params=params)
+            traj = integrator.integrate(
+                q0, v0, h=x / omega, n_steps=n_steps, params=params, on_failure="raise"
+            )
             warned = any(issubclass(w.category, gvi.InstabilityWarning) for w in caught)
             outcome = "warning" if warned else "bounded"
             steps = traj.n_steps
@@ -654,7 +656,12 @@ def fpu_sweep(xs: Sequence[float], n_steps: int, xtol: float = 1e-4) -> dict:
         newton_failures = [r.x for r in runs if r.failure == "newton"]
         if reference_traj is None:
             reference_traj = integrator.integrate(
-                problem.q0, problem.v0, h=1.0 / FPU_OMEGA, n_steps=n_steps, params=problem.params
+                problem.q0,
+                problem.v0,
+                h=1.0 / FPU_OMEGA,
+                n_steps=n_steps,
+                params=problem.params,
+                on_failure="raise",
             )
         theory = analyse(family, degree)
         results["methods"].append(
@@ -734,6 +741,7 @@ def high_degree(
                         h=h,
                         n_steps=round(t_final / h),
                         params=problem.params,
+                        on_failure="raise",
                     )
                     errors[str(h)] = abs(float(traj.q[-1, 0]) - exact)
                     iterations[str(h)] = traj.mean_newton_iterations

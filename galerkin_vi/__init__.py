@@ -10,10 +10,12 @@ from .errors import (
     DegenerateLagrangianError,
     InstabilityWarning,
     OrderReductionWarning,
+    RunFailureWarning,
 )
 from .integrator import Integrator
 from .method import Galerkin
 from .quadrature import QuadratureRule, gauss_legendre, gauss_lobatto
+from .status import RunStatus
 from .system import LagrangianSystem
 from .trajectory import Trajectory
 from .verification import OrderResult, measure_order
@@ -33,6 +35,8 @@ __all__ = [
     "OrderResult",
     "PoincareTransform",
     "QuadratureRule",
+    "RunFailureWarning",
+    "RunStatus",
     "Trajectory",
     "choose_method",
     "encounter_scaling",

@@ -49,7 +49,7 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -57,8 +57,9 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import ConvergenceError
-from .integrator import Integrator, state_vector
+from .integrator import Integrator, check_failure_mode, failed_run, state_vector
 from .method import Galerkin
+from .status import RunStatus
 from .system import LagrangianSystem
 from .trajectory import Trajectory
 
@@ -280,6 +281,7 @@ class AdaptiveIntegrator:
         t0: float = 0.0,
         params: Mapping[sp.Symbol | str, float] | None = None,
         save_every: int = 1,
+        on_failure: str = "warn",
     ) -> AdaptiveTrajectory:
         r"""Integrate with fictitious step ``h`` for ``n_steps`` steps or up to ``t_final``.
 
@@ -301,6 +303,10 @@ class AdaptiveIntegrator:
         params : mapping, optional
         save_every : int
             Save every ``save_every``-th step (and the last).
+        on_failure : {"warn", "raise"}
+            As for :meth:`Integrator.integrate`: a failed run returns the
+            states before the failing step with ``success = False`` and a
+            warning, or (``"raise"``) raises.
 
         Returns
         -------
@@ -311,13 +317,14 @@ class AdaptiveIntegrator:
         Raises
         ------
         ConvergenceError
-            When a step's iteration fails: ``.partial`` is the
+            With ``on_failure="raise"``, when a step's iteration fails: ``.partial`` is the
             :class:`AdaptiveTrajectory` of the states before it, ``.t`` the
             physical time of the last good state, ``.step`` the failing
             fictitious step.
         """
         if (n_steps is None) == (t_final is None):
             raise ValueError("give exactly one of n_steps and t_final")
+        check_failure_mode(on_failure)
         if not (isinstance(h, numbers.Real) and math.isfinite(h) and h > 0):
             raise ValueError(f"h must be a positive fictitious step, got {h!r}")
         if isinstance(save_every, bool) or not isinstance(save_every, numbers.Integral):
@@ -334,12 +341,18 @@ class AdaptiveIntegrator:
             if n_steps is not None:
                 run = self.integrator.integrate(
                     qh, p0=ph, h=float(h), n_steps=n_steps, params=extended_params,
-                    save_every=save_every,
+                    save_every=save_every, on_failure="raise",
                 )  # fmt: skip
             else:
                 run = self._run_to(qh, ph, float(h), float(t_final), extended_params, save_every)
         except ConvergenceError as exc:
-            raise self._physical_failure(exc, prm) from exc
+            physical = self._physical_failure(exc, prm)
+            if on_failure == "raise" or physical.partial is None:
+                raise physical from exc
+            partial = replace(physical.partial, status=exc.partial.status, message=str(physical))
+            return failed_run(
+                partial, on_failure, step=physical.step, t=physical.t, residual=physical.residual
+            )
         return self._trajectory(run, prm)
 
     def _physical_failure(self, exc: ConvergenceError, prm: NDArray) -> ConvergenceError:
@@ -366,14 +379,17 @@ class AdaptiveIntegrator:
         while True:
             try:
                 run = integ.integrate(rows.last_q, p0=rows.last_p, h=h, n_steps=chunk, t0=tau,
-                                      params=params)  # fmt: skip
+                                      params=params, on_failure="raise")  # fmt: skip
             except ConvergenceError as exc:
                 # the chunks before and the failing chunk's good steps, as one partial run
                 before = rows.steps
                 if exc.partial is not None:
                     rows.extend(exc.partial, len(exc.partial) - 1)
                 exc.step += before
-                exc.partial = rows.trajectory(self.transform.extended, save_every)
+                status = exc.partial.status if exc.partial is not None else RunStatus.NO_CONVERGENCE
+                exc.partial = replace(
+                    rows.trajectory(self.transform.extended, save_every), status=status
+                )
                 raise
             rows.work += run.total_newton_iterations
             rows.worst = max(rows.worst, run.max_residual)
@@ -408,7 +424,9 @@ class AdaptiveIntegrator:
         tiny = 4 * np.finfo(float).eps * max(1.0, abs(t_final))
 
         def miss(dtau: float) -> tuple[float, Trajectory]:
-            run = integ.integrate(q, p0=p, h=dtau, n_steps=1, t0=tau, params=params)
+            run = integ.integrate(
+                q, p0=p, h=dtau, n_steps=1, t0=tau, params=params, on_failure="raise"
+            )
             rows.work += run.total_newton_iterations
             return float(run.q[-1, -1]) - t_final, run
 

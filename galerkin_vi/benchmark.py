@@ -191,19 +191,27 @@ def galerkin_curve(
 
     def timed(n: float) -> Trajectory:
         n = int(n)
-        return integ.integrate(q0, v0, h=t_final / n, n_steps=n, save_every=n, params=prm)
+        return integ.integrate(
+            q0, v0, h=t_final / n, n_steps=n, save_every=n, params=prm, on_failure="raise"
+        )
 
     def sample(n: float) -> Sample:
         n = int(n)
         traj = integ.integrate(
-            q0, v0, h=t_final / n, n_steps=n, save_every=every(n, energy_samples), params=prm
+            q0,
+            v0,
+            h=t_final / n,
+            n_steps=n,
+            save_every=every(n, energy_samples),
+            params=prm,
+            on_failure="raise",
         )
         return Sample(
             traj.q[-1], energy_of(traj), {"newton_iterations": traj.mean_newton_iterations}
         )
 
     def warm() -> Trajectory:
-        return integ.integrate(q0, v0, h=warm_step, n_steps=10, params=prm)
+        return integ.integrate(q0, v0, h=warm_step, n_steps=10, params=prm, on_failure="raise")
 
     return Curve(
         method_label(method),

@@ -326,6 +326,7 @@ class _Pilot:
             t0=self.t0,
             params=self.params,
             save_every=n_steps // SAMPLES,
+            on_failure="raise",
         )
         return traj.q[1:]
 
@@ -342,6 +343,7 @@ class _Pilot:
             t0=self.t0,
             params=self.params,
             save_every=n_steps,
+            on_failure="raise",
         )
         return time.perf_counter() - start
 

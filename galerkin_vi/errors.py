@@ -10,6 +10,7 @@ __all__ = [
     "DegenerateLagrangianError",
     "InstabilityWarning",
     "OrderReductionWarning",
+    "RunFailureWarning",
 ]
 
 
@@ -56,6 +57,14 @@ class ConvergenceError(RuntimeError):
         self.residual = residual
         self.partial = partial
         self.extra = extra
+
+
+class RunFailureWarning(RuntimeWarning):
+    """A run failed and returned the states before the failing step.
+
+    The trajectory says why (``status``, ``message``); pass
+    ``on_failure="raise"`` to get :class:`ConvergenceError` instead.
+    """
 
 
 class OrderReductionWarning(UserWarning):

@@ -16,10 +16,16 @@ from . import codegen
 from .backends import numpy as numpy_backend
 from .backends import numpy_constrained, resolve_backend
 from .constraints import consistent_initial_state, project_momentum
-from .errors import ConvergenceError, DegenerateLagrangianError, InstabilityWarning
+from .errors import (
+    ConvergenceError,
+    DegenerateLagrangianError,
+    InstabilityWarning,
+    RunFailureWarning,
+)
 from .method import Galerkin
 from .newton import CONVERGED, newton_solve
 from .separable import has_stage_form, separable_tables
+from .status import loop_status
 from .system import LagrangianSystem, is_regular
 from .trajectory import Trajectory
 
@@ -30,11 +36,8 @@ INSTABILITY_GROWTH = 1e6
 # below this many stage unknowns the constant-mass iteration does not pay (measured)
 MIN_UNKNOWNS_CONSTANT_MASS = 1
 
-_STATUS_MESSAGES = {
-    1: "Newton iteration did not converge",
-    2: "stage Jacobian is singular",
-    3: "non-finite values (NaN or inf) appeared",
-}
+#: what ``integrate(on_failure=...)`` does with a failed run
+FAILURE_MODES = ("warn", "raise")
 
 
 def state_vector(name: str, x: ArrayLike, n: int) -> NDArray[np.float64]:
@@ -348,6 +351,7 @@ class Integrator:
         params: Mapping[sp.Symbol | str, float] | None = None,
         save_every: int = 1,
         project: bool = False,
+        on_failure: str = "warn",
     ) -> Trajectory:
         """Integrate ``n_steps`` steps of size ``h`` from ``q0`` and ``v0`` or ``p0``.
 
@@ -372,16 +376,26 @@ class Integrator:
             more than :data:`galerkin_vi.constraints.INITIAL_TOLERANCE` are
             rejected; within it, ``q0`` is kept and only the momentum is
             projected (exactly, a change of the size of the violation).
+        on_failure : {"warn", "raise"}
+            What a failed run does (the stage equations do not converge, their
+            Jacobian is singular, NaN or inf appear). ``"warn"`` (default, as
+            :func:`scipy.integrate.solve_ivp`): return the states computed before
+            the failing step with ``success = False``, a negative ``status`` and a
+            ``message`` naming the step, time and cause, and emit a
+            :class:`~galerkin_vi.RunFailureWarning`. ``"raise"``: raise
+            :class:`~galerkin_vi.ConvergenceError` with that trajectory as
+            ``.partial``.
 
         Returns
         -------
         Trajectory
+            ``status`` 0 and ``success`` True when all steps were taken.
 
         Raises
         ------
         ConvergenceError
-            If a step's Newton solve fails; ``.partial`` holds every saved state
-            before the failing step.
+            With ``on_failure="raise"``, if a step fails; ``.partial`` holds every
+            saved state before the failing step and the last good state.
         ValueError
             For bad arguments, and for constrained systems when the initial data
             are inconsistent (see ``project``) or the constraints are redundant.
@@ -395,6 +409,7 @@ class Integrator:
             the exponential growth of a step size past the stability limit.
         """
         system = self.system
+        check_failure_mode(on_failure)
         q0 = self._state("q0", q0)
         h = self._step_size(h)
         n_steps, save_every, t0 = _run_lengths(n_steps, save_every, t0)
@@ -405,16 +420,14 @@ class Integrator:
         status, done, saved, worst, increment = self._run_loop(run, out)
         traj = out.trajectory(status, done, saved, worst, save_every, system, prm)
         if status != 0:
+            code = loop_status(status)
             t_fail = t0 + done * h
-            raise ConvergenceError(
-                f"step {done} (t = {t_fail:.6g}, h = {h:.3g}): {_STATUS_MESSAGES[int(status)]} "
-                f"(last increment {increment:.3g}); the trajectory up to the failing step is in "
-                ".partial. Try a smaller h.",
-                step=int(done),
-                t=t_fail,
-                residual=float(increment),
-                partial=traj,
+            message = (
+                f"step {done} (t = {t_fail:.6g}, h = {h:.3g}): {code.cause} (last increment "
+                f"{increment:.3g}); the states before the failing step are kept. Try a smaller h."
             )
+            traj = replace(traj, status=code, message=message)
+            return failed_run(traj, on_failure, step=int(done), t=t_fail, residual=increment)
         _warn_if_unstable(traj, h)
         return traj
 
@@ -487,6 +500,7 @@ class Integrator:
         params: Mapping[sp.Symbol | str, float] | None = None,
         save_every: int = 1,
         project: bool = False,
+        on_failure: str = "warn",
     ) -> Iterator[Trajectory]:
         """:meth:`integrate` in chunks of ``chunk_steps`` steps, yielding each chunk.
 
@@ -509,16 +523,26 @@ class Integrator:
         Other parameters
             As for :meth:`integrate`.
 
+        Yields
+        ------
+        Trajectory
+            The chunks. After a failure (``on_failure="warn"``) the last one
+            holds the failing chunk's states before the failing step, with the
+            failure's ``status`` and ``message`` (steps counted from the start
+            of the run), and the stream ends.
+
         Raises
         ------
         ConvergenceError
-            As :meth:`integrate`, with ``.step`` counted from the start of the
-            run; ``.partial`` holds the failing chunk's states after the last
-            yielded one (earlier chunks were already yielded).
+            With ``on_failure="raise"``, as :meth:`integrate`, with ``.step``
+            counted from the start of the run; ``.partial`` holds the failing
+            chunk's states after the last yielded one (earlier chunks were
+            already yielded).
         ValueError
             For bad arguments, when ``stream`` is called.
         """
         # validated here, when stream() is called, not at the first next()
+        check_failure_mode(on_failure)
         if (
             isinstance(chunk_steps, bool)
             or not isinstance(chunk_steps, numbers.Integral)
@@ -535,11 +559,12 @@ class Integrator:
         if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 0:
             raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
         return self._chunks(
-            q0, v0, p0, h, int(n_steps), int(chunk_steps), t0, params, save_every, project
-        )
+            q0, v0, p0, h, int(n_steps), int(chunk_steps), t0, params, save_every, project,
+            on_failure,
+        )  # fmt: skip
 
     def _chunks(
-        self, q0, v0, p0, h, n_steps, chunk_steps, t0, params, save_every, project
+        self, q0, v0, p0, h, n_steps, chunk_steps, t0, params, save_every, project, on_failure
     ) -> Iterator[Trajectory]:
         done = 0
         offset = None  # whole turns of the angles, added back to later chunks' q
@@ -559,16 +584,23 @@ class Integrator:
                     params=params,
                     save_every=save_every,
                     project=project and first,
+                    on_failure="raise",
                 )
             except ConvergenceError as exc:
                 # report the failure in the coordinates and step count of the whole run
                 exc.step += done
-                if exc.partial is not None:
-                    partial = exc.partial
-                    if offset is not None:
-                        partial = replace(partial, q=partial.q + offset)
-                    exc.partial = partial if first else _without_first_row(partial)
-                raise
+                partial = exc.partial
+                if offset is not None:
+                    partial = replace(partial, q=partial.q + offset)
+                partial = partial if first else _without_first_row(partial)
+                message = f"{partial.message} (step {exc.step} of the whole run)"
+                exc.partial = replace(partial, message=message)
+                if on_failure == "raise":
+                    raise
+                yield failed_run(
+                    exc.partial, on_failure, step=exc.step, t=exc.t, residual=exc.residual
+                )
+                return
             if offset is not None:
                 chunk = replace(chunk, q=chunk.q + offset)
             yield chunk if first else _without_first_row(chunk)
@@ -586,7 +618,7 @@ class Integrator:
         self, q0: ArrayLike, p0: ArrayLike, h: float, t0: float = 0.0, params=None
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """One step of the position–momentum map, ``(q_k, p_k) -> (q_{k+1}, p_{k+1})``."""
-        traj = self.integrate(q0, p0=p0, h=h, n_steps=1, t0=t0, params=params)
+        traj = self.integrate(q0, p0=p0, h=h, n_steps=1, t0=t0, params=params, on_failure="raise")
         return traj.q[-1].copy(), traj.p[-1].copy()
 
     def step_del(
@@ -650,6 +682,30 @@ class Integrator:
                 residual=result.increment,
             )
         return qb + result.x[-n:]
+
+
+def check_failure_mode(on_failure: object) -> None:
+    """Reject an ``on_failure`` that is not one of :data:`FAILURE_MODES`."""
+    if on_failure not in FAILURE_MODES:
+        raise ValueError(f"on_failure must be one of {FAILURE_MODES}, got {on_failure!r}")
+
+
+def failed_run(traj: Trajectory, on_failure: str, *, step: int, t: float, residual: float):
+    """A failed run's trajectory, returned with a warning or raised as ``.partial``.
+
+    ``traj`` carries the failure's ``status`` and ``message`` already.
+    """
+    if on_failure == "raise":
+        raise ConvergenceError(
+            f"{traj.message} The trajectory up to the failing step is in .partial.",
+            step=step,
+            t=t,
+            residual=float(residual),
+            partial=traj,
+        )
+    # stacklevel 3: the caller of integrate(), not integrate() itself
+    warnings.warn(traj.message, RunFailureWarning, stacklevel=3)
+    return traj
 
 
 def _run_lengths(n_steps, save_every, t0) -> tuple[int, int, float]:

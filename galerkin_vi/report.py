@@ -232,6 +232,7 @@ def _invariants(
         h=problem.t_final / n_steps,
         n_steps=n_steps,
         params=problem.params,
+        on_failure="raise",
     )
     structure = problem.system.structure
     energy_error = None

@@ -442,6 +442,7 @@ def assert_conserved(
     momentum_tol: float | None = None,
     bounded: bool = False,
     relative: bool = True,
+    allow_failed: bool = False,
 ) -> dict[str, float]:
     r"""Assert that energy and momentum maps stay near their initial values.
 
@@ -474,8 +475,8 @@ def assert_conserved(
     Parameters
     ----------
     trajectory : Trajectory
-        A run, e.g. ``Integrator(...).integrate(...)`` (for a failed run, the
-        ``partial`` trajectory of the :class:`~galerkin_vi.ConvergenceError`).
+        A run, e.g. ``Integrator(...).integrate(...)``, or the ``partial``
+        trajectory of a :class:`~galerkin_vi.ConvergenceError`.
     energy : float, optional
         Bound on the energy drift :math:`d_H`.
     momenta : mapping of str to generator or (generator, bound), optional
@@ -489,6 +490,10 @@ def assert_conserved(
         Also check that the energy error does not drift (see above).
     relative : bool
         Divide the drifts by :math:`\max(1, |Q_0|)` (default) or not.
+    allow_failed : bool
+        Check the states of a failed run (``trajectory.success`` False) too.
+        By default a failed run fails the assertion with its message: a test
+        should not pass on the part of a run that happened to go well.
 
     Returns
     -------
@@ -499,7 +504,8 @@ def assert_conserved(
     Raises
     ------
     AssertionError
-        If a drift exceeds its bound or the energy drifts. The message has a
+        If the run failed (unless ``allow_failed``), a drift exceeds its bound
+        or the energy drifts. The message has a
         table of quantity, initial value, bound, measured drift and the saved
         time at which the largest deviation occurred.
     TypeError
@@ -549,6 +555,11 @@ def assert_conserved(
         )
     if not isinstance(bounded, bool):
         raise TypeError(f"bounded must be True or False, got {bounded!r}")
+    if not trajectory.success and not allow_failed:
+        raise AssertionError(
+            f"assert_conserved: the run failed ({trajectory.message}); pass "
+            "allow_failed=True to check the states computed before the failure"
+        )
     if not isinstance(relative, bool):
         raise TypeError(f"relative must be True or False, got {relative!r}")
     if energy is not None:

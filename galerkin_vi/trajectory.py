@@ -9,6 +9,7 @@ import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 
+from .status import RunStatus
 from .system import LagrangianSystem
 
 __all__ = ["Trajectory"]
@@ -42,6 +43,12 @@ class Trajectory:
         (``system.periodic``) in :math:`[-\pi, \pi)`; ``None`` without angles.
         ``q`` holds the continuous angles, rounded to the precision of their
         size; diagnostics evaluate at ``q_reduced``.
+    status : RunStatus
+        Why the run stopped, with :func:`scipy.integrate.solve_ivp`'s signs:
+        0 it reached its end, 1 a terminal event stopped it, negative a failure
+        (see :class:`~galerkin_vi.status.RunStatus`).
+    message : str
+        The status in words; for a failure, the step, time and cause.
     """
 
     t: NDArray[np.float64]
@@ -54,9 +61,16 @@ class Trajectory:
     total_newton_iterations: int = 0
     n_steps: int = 0
     q_reduced: NDArray[np.float64] | None = None
+    status: RunStatus = RunStatus.COMPLETED
+    message: str = "the run reached its last step"
 
     def __len__(self) -> int:
         return self.t.shape[0]
+
+    @property
+    def success(self) -> bool:
+        """True unless the run failed (``status < 0``); a terminal event is a success."""
+        return self.status >= 0
 
     @property
     def mean_newton_iterations(self) -> float:

@@ -226,6 +226,7 @@ def measure_order(
             t0=t0,
             params=params,
             save_every=1 if norm == "max" else n_steps,
+            on_failure="raise",
         )
 
     def final_position(n_steps: int) -> NDArray:

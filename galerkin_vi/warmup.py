@@ -137,7 +137,7 @@ def warm_up(group: int = 0, of: int = 1, verbose: bool = False) -> dict[str, flo
         label, system, method, specialize, q0, v0 = runs[index]
         integrator = Integrator(system, method, specialize=specialize)
         start = time.perf_counter()
-        integrator.integrate(q0, v0=v0, h=0.01, n_steps=2)
+        integrator.integrate(q0, v0=v0, h=0.01, n_steps=2, on_failure="raise")
         seconds[label] = time.perf_counter() - start
         if verbose:
             print(f"  {seconds[label]:5.1f} s  {label}", flush=True)

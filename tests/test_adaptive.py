@@ -166,7 +166,7 @@ def test_a_failed_run_keeps_its_states_in_physical_time(kepler, adaptive):
     """h = 1.5 is far too long at pericentre: the second step fails, the first is kept."""
     for run in ({"n_steps": 400}, {"t_final": 300.0}):
         with pytest.raises(gvi.ConvergenceError, match="physical time") as failure:
-            adaptive.integrate(kepler.q0, kepler.v0, h=1.5, **run)
+            adaptive.integrate(kepler.q0, kepler.v0, h=1.5, on_failure="raise", **run)
         error = failure.value
         assert error.step == 1
         partial = error.partial

@@ -246,7 +246,7 @@ def test_failure_keeps_the_last_good_state():
     integrator = gvi.Integrator(system, gvi.Galerkin(2))
     assert integrator.kernel_path == "separable"
     with np.errstate(all="ignore"), pytest.raises(gvi.ConvergenceError) as info:
-        integrator.integrate([1.0], [0.0], h=0.05, n_steps=400, save_every=3)
+        integrator.integrate([1.0], [0.0], h=0.05, n_steps=400, save_every=3, on_failure="raise")
     partial = info.value.partial
     done = partial.n_steps - 1
     assert done == info.value.step and done > 5

@@ -111,7 +111,9 @@ def test_explicit_loop_fails_cleanly_on_blow_up():
     q, v = sp.symbols("q v")
     system = gvi.LagrangianSystem(v**2 / 2 + q**6, [q], [v])
     with np.errstate(all="ignore"), pytest.raises(gvi.ConvergenceError, match="non-finite"):
-        gvi.Integrator(system, gvi.Galerkin(1)).integrate([2.0], [0.0], h=0.5, n_steps=100)
+        gvi.Integrator(system, gvi.Galerkin(1)).integrate(
+            [2.0], [0.0], h=0.5, n_steps=100, on_failure="raise"
+        )
 
 
 def test_changing_method_step_and_parameters_never_recompiles():

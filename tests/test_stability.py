@@ -188,7 +188,9 @@ def test_fpu_past_verlet_limit_raises_and_never_returns_non_finite_states(fpu):
             run.outcome in ("warning", "error") and run.finite
         )  # measured: overflow at steps 4-25
     with pytest.raises(gvi.ConvergenceError) as info:
-        integrator.integrate(fpu.q0, fpu.v0, h=2.5 / omega, n_steps=2000, params=fpu.params)
+        integrator.integrate(
+            fpu.q0, fpu.v0, h=2.5 / omega, n_steps=2000, params=fpu.params, on_failure="raise"
+        )
     assert np.all(np.isfinite(info.value.partial.q)) and np.all(np.isfinite(info.value.partial.p))
 
 

@@ -80,7 +80,7 @@ def test_growth_past_the_stability_limit_warns_and_overflow_raises():
         grown = verlet.integrate([1.0], v0=[0.0], h=2.1, n_steps=200)
     assert np.all(np.isfinite(grown.p))
     with pytest.raises(gvi.ConvergenceError, match="non-finite") as info:
-        verlet.integrate([1.0], v0=[0.0], h=2.1, n_steps=5000)
+        verlet.integrate([1.0], v0=[0.0], h=2.1, n_steps=5000, on_failure="raise")
     partial = info.value.partial
     assert np.all(np.isfinite(partial.q)) and len(partial) > 100
 
@@ -94,7 +94,9 @@ def test_a_failing_chunk_reports_the_whole_run():
     integrator = gvi.Integrator(rotor, gvi.Galerkin(2))
     got = []
     with pytest.raises(gvi.ConvergenceError) as info:
-        for chunk in integrator.stream([0.5], v0=[3.0], h=0.1, n_steps=1000, chunk_steps=100):
+        for chunk in integrator.stream(
+            [0.5], v0=[3.0], h=0.1, n_steps=1000, chunk_steps=100, on_failure="raise"
+        ):
             got.append(chunk)
     error = info.value
     assert len(got) >= 1
@@ -116,7 +118,9 @@ def test_specialised_loops_keep_the_last_good_state(kind):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", gvi.InstabilityWarning)
         with pytest.raises(gvi.ConvergenceError) as info:
-            integrator.integrate([1.0], v0=[0.0], h=h, n_steps=100_000, save_every=7)
+            integrator.integrate(
+                [1.0], v0=[0.0], h=h, n_steps=100_000, save_every=7, on_failure="raise"
+            )
     error = info.value
     partial = error.partial
     # the state at the start of the failing step is saved, due or not

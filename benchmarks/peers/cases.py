@@ -248,7 +248,9 @@ def _dop853_final(fun, q0, v0, t_final: float) -> NDArray[np.float64]:
 def _gvi_final(prob: problems.Problem, s: int, n: int, t_final: float, q0, v0) -> NDArray:
     """galerkin_vi degree s with gauss_legendre(s), n steps over [0, t_final]: final position."""
     integ = gvi.Integrator(prob.system, gvi.Galerkin(s, gvi.gauss_legendre(s)))
-    traj = integ.integrate(q0, v0, h=t_final / n, n_steps=n, save_every=n, params=prob.params)
+    traj = integ.integrate(
+        q0, v0, h=t_final / n, n_steps=n, save_every=n, params=prob.params, on_failure="raise"
+    )
     return traj.q[-1].copy()
 
 
@@ -578,7 +580,9 @@ def reference_checks(case: Case) -> dict:
         return dict(case.reference_checks)
     n = int(round(case.t_final / 0.1))
     integ = gvi.Integrator(case.problem.system, gvi.Galerkin(6, gvi.gauss_legendre(6)))
-    traj = integ.integrate(case.q0, case.v0, h=case.t_final / n, n_steps=n, save_every=n)
+    traj = integ.integrate(
+        case.q0, case.v0, h=case.t_final / n, n_steps=n, save_every=n, on_failure="raise"
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # scipy raises rtol to 100 eps
         sol = solve_ivp(

@@ -707,7 +707,9 @@ def _per_step_row(case: Case, key: str, cfg: BenchConfig) -> dict:
             variants[variant] = _hw_runner(case, f"{kernel}-{variant}")[0]
 
     def gvi_run(n, every):
-        return integ.integrate(case.q0, case.v0, h=h, n_steps=n, save_every=every, params=prm)
+        return integ.integrate(
+            case.q0, case.v0, h=h, n_steps=n, save_every=every, params=prm, on_failure="raise"
+        )
 
     # warm up, then size the runs so that one galerkin_vi run takes about per_step_time
     gvi_run(10, 10)

@@ -1,0 +1,58 @@
+"""How a run ended: the status codes of a :class:`~galerkin_vi.Trajectory`.
+
+The codes follow :func:`scipy.integrate.solve_ivp`: 0 the run reached its end,
+1 a terminal event stopped it, negative a failure. solve_ivp has one failure
+code (-1); here each cause has its own, so that a caller can tell a step size
+past the stability limit from an interrupted run without parsing the message.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+__all__ = ["RunStatus", "loop_status"]
+
+
+class RunStatus(IntEnum):
+    """Why a run stopped (``Trajectory.status``); ``success`` is ``status >= 0``."""
+
+    COMPLETED = 0
+    TERMINATED = 1
+    NO_CONVERGENCE = -1
+    SINGULAR_JACOBIAN = -2
+    NON_FINITE = -3
+    UNSTABLE = -4
+    INTERRUPTED = -5
+
+    @property
+    def cause(self) -> str:
+        """The cause in words, for messages."""
+        return _CAUSES[self]
+
+
+_CAUSES = {
+    RunStatus.COMPLETED: "the run reached its last step",
+    RunStatus.TERMINATED: "a terminal event occurred",
+    RunStatus.NO_CONVERGENCE: "the iteration of the stage equations did not converge",
+    RunStatus.SINGULAR_JACOBIAN: "the Jacobian of the stage equations is singular",
+    RunStatus.NON_FINITE: "non-finite values (NaN or inf) appeared",
+    RunStatus.UNSTABLE: "the solution grew explosively: the step size is past the "
+    "method's stability limit",
+    RunStatus.INTERRUPTED: "the run was interrupted (KeyboardInterrupt)",
+}
+
+# the compiled loops and the NumPy backends return 0 for success and these codes
+_LOOP_CODES = {
+    0: RunStatus.COMPLETED,
+    1: RunStatus.NO_CONVERGENCE,
+    2: RunStatus.SINGULAR_JACOBIAN,
+    3: RunStatus.NON_FINITE,
+}
+
+
+def loop_status(code: int) -> RunStatus:
+    """The :class:`RunStatus` of a loop's return code."""
+    try:
+        return _LOOP_CODES[int(code)]
+    except KeyError:
+        raise ValueError(f"unknown loop status code {code!r}") from None
