@@ -16,6 +16,7 @@ from . import codegen
 from .backends import numpy as numpy_backend
 from .backends import numpy_constrained, resolve_backend
 from .constraints import consistent_initial_state, project_momentum
+from .dense import dense_output as make_dense_output
 from .errors import (
     ConvergenceError,
     DegenerateLagrangianError,
@@ -352,6 +353,7 @@ class Integrator:
         save_every: int = 1,
         project: bool = False,
         on_failure: str = "warn",
+        dense_output: bool = False,
     ) -> Trajectory:
         """Integrate ``n_steps`` steps of size ``h`` from ``q0`` and ``v0`` or ``p0``.
 
@@ -385,6 +387,11 @@ class Integrator:
             :class:`~galerkin_vi.RunFailureWarning`. ``"raise"``: raise
             :class:`~galerkin_vi.ConvergenceError` with that trajectory as
             ``.partial``.
+        dense_output : bool
+            Attach ``Trajectory.sol``, positions, velocities and momenta at any
+            time of the run, from Hermite interpolation of the nodal data at
+            the method's order (:mod:`galerkin_vi.dense`). Needs every step
+            saved (``save_every=1``).
 
         Returns
         -------
@@ -413,12 +420,22 @@ class Integrator:
         q0 = self._state("q0", q0)
         h = self._step_size(h)
         n_steps, save_every, t0 = _run_lengths(n_steps, save_every, t0)
+        if not isinstance(dense_output, bool):
+            raise TypeError(f"dense_output must be True or False, got {dense_output!r}")
+        if dense_output and save_every != 1:
+            raise ValueError(
+                f"dense_output=True interpolates between consecutive steps: it needs "
+                f"save_every=1, got {save_every}"
+            )
         prm = system.parameter_vector(params)
         q0, p0_arr, v0_arr = self._initial_state(q0, v0, p0, t0, prm, project)
         out = RunOutputs.allocate(n_steps, save_every, system.n, any(system.periodic))
         run = (q0, p0_arr, v0_arr, t0, h, n_steps, save_every, prm)
         status, done, saved, worst, increment = self._run_loop(run, out)
         traj = out.trajectory(status, done, saved, worst, save_every, system, prm)
+        traj = replace(traj, order=self.method.order)
+        if dense_output and len(traj) >= 2:
+            traj = replace(traj, sol=make_dense_output(traj))
         if status != 0:
             code = loop_status(status)
             t_fail = t0 + done * h

@@ -14,6 +14,13 @@ from sympy.core.function import AppliedUndef
 
 from .analysis_cache import analysis_key, load_analysis, store_analysis
 from .errors import DegenerateLagrangianError
+from .mechanics import (
+    MechanicsSymbols,
+    PlainModel,
+    lagranges_method_model,
+    to_plain_symbols,
+    uses_dynamicsymbols,
+)
 from .numeric import FlatEvaluator
 from .symbolic import (
     ConstraintPieces,
@@ -52,11 +59,22 @@ class LagrangianSystem:
     ----------
     L : sympy.Expr
         The Lagrangian, an expression in the symbols ``q``, ``v``, optionally ``t``
-        and the parameter symbols.
-    q, v : sequence of sympy.Symbol
-        Configuration and velocity symbols, the same number of each.
+        and the parameter symbols; or, for a ``sympy.physics.mechanics`` model, in
+        the dynamicsymbols ``q`` and their time derivatives.
+    q : sequence of sympy.Symbol, or of dynamicsymbols
+        Configuration symbols; or the coordinates of a ``sympy.physics.mechanics``
+        model, functions of time (``dynamicsymbols("q1 q2")``). Those are
+        rewritten exactly into plain symbols (:func:`.mechanics.to_plain_symbols`):
+        :math:`q_i(t) \mapsto` ``q1``, :math:`\dot q_i(t) \mapsto` ``q1_dot``,
+        and the system is time dependent exactly when ``t`` then still occurs.
+        Constraints and forces in dynamicsymbols are rewritten the same way;
+        :attr:`mechanics_symbols` holds the map.
+    v : sequence of sympy.Symbol
+        Velocity symbols, one per coordinate. Required with plain symbols;
+        omitted with dynamicsymbols (their time derivatives are the velocities).
     t : sympy.Symbol, optional
-        The time symbol. ``None`` (default) declares an autonomous system.
+        The time symbol. ``None`` (default) declares an autonomous system (with
+        dynamicsymbols: time dependence is found from ``L``).
     params : mapping of sympy.Symbol to float, optional
         Parameter symbols and their default values. Values can be changed per
         run (``Integrator.integrate(params=...)``) without regenerating code.
@@ -72,12 +90,22 @@ class LagrangianSystem:
         principle: :math:`\delta\sum_k L_d + \sum_k\sum_\nu F^\nu_k\cdot\delta q^\nu_k = 0`
         with :math:`F^\nu = h\sum_i b_i \Phi_{i\nu} f(t_i, Q_i, V_i)`.
 
+    Attributes
+    ----------
+    mechanics_symbols : MechanicsSymbols or None
+        For a model given in dynamicsymbols, the map between them and the plain
+        symbols of :attr:`q`, :attr:`v` and :attr:`t`
+        (:class:`~galerkin_vi.mechanics.MechanicsSymbols`); ``None`` otherwise.
+
     Raises
     ------
     TypeError
         If ``L`` is not a SymPy expression or the symbols are not SymPy symbols.
     ValueError
-        If ``q`` and ``v`` differ in length, symbols repeat, ``L``, a force or a
+        If ``v`` is missing with plain symbols or given with dynamicsymbols;
+        if ``L``, a force or a constraint holds a function of time not listed in
+        ``q`` or a second time derivative of a coordinate;
+        if ``q`` and ``v`` differ in length, symbols repeat, ``L``, a force or a
         constraint contains undeclared symbols (a constraint may not contain
         velocities), ``forces`` does not have one entry per coordinate, a
         constraint is constant, or a parameter value is not a finite real number;
@@ -106,18 +134,46 @@ class LagrangianSystem:
     >>> system = LagrangianSystem(vx**2 / 2 - k * x**2 / 2, q=[x], v=[vx], params={k: 4.0})
     >>> float(system.hamiltonian([1.0], [0.0])[()])
     2.0
+
+    The same oscillator written with ``sympy.physics.mechanics`` dynamicsymbols:
+
+    >>> from sympy.physics.mechanics import dynamicsymbols
+    >>> xt = dynamicsymbols("x")
+    >>> system = LagrangianSystem(xt.diff() ** 2 / 2 - k * xt**2 / 2, q=[xt], params={k: 4.0})
+    >>> system.L, system.v
+    (-k*x**2/2 + x_dot**2/2, (x_dot,))
     """
 
     def __init__(
         self,
         L: sp.Expr,
         q: Sequence[sp.Symbol],
-        v: Sequence[sp.Symbol],
+        v: Sequence[sp.Symbol] | None = None,
         t: sp.Symbol | None = None,
         params: Mapping[sp.Symbol, float] | None = None,
         constraints: Sequence[sp.Expr] | None = None,
         forces: Sequence[sp.Expr] | None = None,
     ) -> None:
+        #: the map from a mechanics model's dynamicsymbols to the plain symbols here
+        self.mechanics_symbols: MechanicsSymbols | None = None
+        if uses_dynamicsymbols(q):
+            if v is not None:
+                raise ValueError(
+                    "v must be omitted when q are dynamicsymbols: their time derivatives "
+                    "are the velocities"
+                )
+            model = to_plain_symbols(
+                L, q, constraints=constraints, forces=forces, params=params or (), t=t
+            )
+            _check_values_given(model, params or {})
+            L, q, v, t = model.L, model.q, model.v, model.t
+            constraints, forces = model.constraints, model.forces
+            self.mechanics_symbols = model.symbols
+        elif v is None:
+            raise ValueError(
+                "v (the velocity symbols, one per coordinate) is required when q are plain "
+                "symbols; it may be omitted only for sympy.physics.mechanics dynamicsymbols"
+            )
         if isinstance(L, (int, float)) and not isinstance(L, bool):
             L = sp.sympify(L)
         if not isinstance(L, sp.Expr):
@@ -193,6 +249,64 @@ class LagrangianSystem:
             "constraint_pieces": self.constraint_pieces,
         }
         store_analysis(key, self._analysis)
+
+    @classmethod
+    def from_lagranges_method(
+        cls,
+        lm: object,
+        params: Mapping[sp.Symbol, float] | None = None,
+        t: sp.Symbol | None = None,
+        frame: object = None,
+    ) -> LagrangianSystem:
+        r"""The system of a :class:`sympy.physics.mechanics.LagrangesMethod`.
+
+        Takes its Lagrangian (e.g. from ``Lagrangian(frame, *bodies)``), its
+        coordinates ``lm.q``, its holonomic constraints ``hol_coneqs`` (enforced
+        as ``constraints``) and its applied loads ``forcelist``, which become
+        the generalised forces by partial velocities in the inertial frame
+        :math:`N`:
+
+        .. math::
+
+            Q_i = \sum_P F_P \cdot \frac{\partial v_P^N}{\partial \dot q_i}
+                + \sum_B T_B \cdot \frac{\partial \omega_B^N}{\partial \dot q_i}
+
+        (:func:`.mechanics.generalised_forces`), exactly the force term of
+        ``lm.form_lagranges_equations()``. All of it is rewritten into plain
+        symbols as for ``LagrangianSystem(L, q=lm.q)``.
+
+        Parameters
+        ----------
+        lm : sympy.physics.mechanics.LagrangesMethod
+            The model.
+        params : mapping of sympy.Symbol to float, optional
+            Values of every symbol other than the coordinates, their time
+            derivatives and time (masses, lengths, gravity, ...).
+        t : sympy.Symbol, optional
+            Declares the system time dependent (the time of ``lm.q``); by
+            default found from the model.
+        frame : sympy.physics.vector.ReferenceFrame, optional
+            The inertial frame of the loads; defaults to ``lm.inertial``.
+
+        Raises
+        ------
+        TypeError
+            If ``lm`` is not a ``LagrangesMethod`` or a load is malformed.
+        NotImplementedError
+            If ``lm`` has nonholonomic constraints.
+        ValueError
+            If a symbol has no value in ``params``, the loads have no inertial
+            frame, or as for the constructor.
+        """
+        model = lagranges_method_model(lm, frame)
+        return cls(
+            model.L,
+            q=list(model.q),
+            t=t,
+            params=params,
+            constraints=model.constraints,
+            forces=model.forces,
+        )
 
     def recalled(self, name: str):
         """A value stored with :meth:`remember` for these inputs (this or an earlier
@@ -531,6 +645,26 @@ class MomentumMap:
         values = self._params if params is None else np.asarray(params, dtype=float)
         generator = self._evaluate(*np.moveaxis(q, -1, 0), *values)
         return np.sum(p * generator, axis=-1)
+
+
+def _check_values_given(model: PlainModel, params: Mapping[sp.Symbol, float]) -> None:
+    """Name every symbol of a mechanics model that is neither q, v, t nor a parameter.
+
+    One message for the Lagrangian, the forces and the constraints together: a
+    mechanics model spreads its constants over all three (gravity may occur only
+    in a force of the ``forcelist``).
+    """
+    exprs = [model.L]
+    for items in (model.constraints, model.forces):
+        exprs += [e for e in items or () if isinstance(e, sp.Basic)]
+    known = {*model.q, *model.v, *params} | ({model.t} if model.t is not None else set())
+    missing = set().union(*(e.free_symbols for e in exprs)) - known
+    if missing:
+        names = ", ".join(sorted(str(s) for s in missing))
+        raise ValueError(
+            f"the model contains the symbols {names} without values: give them in "
+            "params={symbol: value, ...}"
+        )
 
 
 def _as_real(value: object, name: str) -> float:

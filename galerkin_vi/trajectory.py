@@ -9,6 +9,7 @@ import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 
+from .dense import DenseOutput
 from .status import RunStatus
 from .system import LagrangianSystem
 
@@ -49,6 +50,11 @@ class Trajectory:
         (see :class:`~galerkin_vi.status.RunStatus`).
     message : str
         The status in words; for a failure, the step, time and cause.
+    order : int or None
+        The method's predicted global order (sets the dense output's stencil).
+    sol : DenseOutput or None
+        Positions, velocities and momenta at any time of the run
+        (``integrate(..., dense_output=True)``; see :mod:`galerkin_vi.dense`).
     """
 
     t: NDArray[np.float64]
@@ -63,6 +69,8 @@ class Trajectory:
     q_reduced: NDArray[np.float64] | None = None
     status: RunStatus = RunStatus.COMPLETED
     message: str = "the run reached its last step"
+    order: int | None = None
+    sol: DenseOutput | None = None
 
     def __len__(self) -> int:
         return self.t.shape[0]

@@ -1,0 +1,192 @@
+r"""Dense output: positions, velocities and momenta between the steps of a run.
+
+A Galerkin step's own polynomial :math:`q_d(t)` is accurate to
+:math:`O(h^{s+1})` only, far below the method's nodal order :math:`2s` (the
+nodes are superconvergent, the stages are not). The nodal data are better:
+:math:`q_k` and :math:`v_k = (\mathbb FL)^{-1}(q_k, p_k)` both carry the
+method's full order, and the global error is a smooth function of :math:`t`.
+So the interpolant offered here is the **Hermite interpolant through**
+:math:`(t_j, q_j, v_j)` **at N consecutive nodes around the step**: the
+polynomial of degree :math:`2N - 1` matching positions and velocities at each.
+Interpolating exact data it errs by :math:`O(h^{2N})`, its derivative by
+:math:`O(h^{2N-1})`; with the method's data of order :math:`p` the errors are
+:math:`O(h^{\min(2N,\,p)})` and :math:`O(h^{\min(2N-1,\,p)})`.
+:func:`stencil_nodes` chooses the least N with :math:`2N - 1 \ge p`: cubic
+Hermite (N = 2) for order 2, N = 3 for order 4, N = 4 for order 6. The
+measured orders are in ``docs/howto/dense-output.md``.
+
+Near the ends of the run the stencil shifts inwards (one-sided, same degree);
+the nodes need not be equally spaced (adaptive runs, a final landing step).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:  # a Trajectory holds a DenseOutput: no import at run time
+    from .trajectory import Trajectory
+
+__all__ = ["DenseOutput", "dense_output", "hermite", "stencil_nodes"]
+
+
+def stencil_nodes(order: int) -> int:
+    """Nodes N of the Hermite stencil for a method of global order ``order``.
+
+    The least N with ``2 N - 1 >= order``: the interpolant's derivative, of
+    error :math:`O(h^{2N-1})`, then has the method's order too (the cubic
+    Hermite interpolant of an order-4 method gives velocities of order 3 only,
+    measured). At least 2.
+    """
+    if isinstance(order, bool) or not isinstance(order, int) or order < 1:
+        raise ValueError(f"order must be a positive int, got {order!r}")
+    return max(2, order // 2 + 1)
+
+
+def hermite(
+    nodes: NDArray, values: NDArray, slopes: NDArray, t: NDArray
+) -> tuple[NDArray, NDArray]:
+    r"""Hermite interpolant through values and slopes at nodes, and its derivative.
+
+    Parameters
+    ----------
+    nodes : ndarray, shape (m, N)
+        For each of m query points, its N distinct nodes :math:`t_j`.
+    values, slopes : ndarray, shape (m, N, n)
+        :math:`y(t_j)` and :math:`y'(t_j)`.
+    t : ndarray, shape (m,)
+        The query points.
+
+    Returns
+    -------
+    y, dy : ndarray, shape (m, n)
+        The interpolant :math:`P(t)` of degree :math:`2N - 1` with
+        :math:`P(t_j) = y_j`, :math:`P'(t_j) = y'_j`, and :math:`P'(t)`.
+
+    Notes
+    -----
+    Newton's form on the doubled nodes :math:`z = (t_1, t_1, t_2, t_2, \dots)`:
+    confluent divided differences :math:`f[t_j, t_j] = y'_j`, then the usual
+    recursion, evaluated by Horner's rule with its derivative.
+    """
+    m, N, n = values.shape
+    z = np.repeat(nodes, 2, axis=1)  # (m, 2N)
+    # column k of the table holds f[z_i, ..., z_{i+k}]; updated in place, top down
+    coef = np.repeat(values, 2, axis=1)  # (m, 2N, n)
+    table = coef.copy()
+    for k in range(1, 2 * N):
+        span = (z[:, k:] - z[:, :-k])[:, :, None]
+        differences = table[:, 1 : 2 * N - k + 1] - table[:, : 2 * N - k]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            new = differences / span
+        if k == 1:
+            # repeated nodes: the first divided difference is the slope
+            new[:, 0::2] = slopes
+        table = new
+        coef[:, k] = table[:, 0]
+    x = t[:, None]
+    y = coef[:, -1].copy()
+    dy = np.zeros_like(y)
+    for k in range(2 * N - 2, -1, -1):
+        step = x - z[:, k : k + 1]
+        dy = dy * step + y
+        y = y * step + coef[:, k]
+    return y, dy
+
+
+@dataclass(frozen=True, eq=False)
+class DenseOutput:
+    r"""Positions, velocities and momenta of a run at any time in its span.
+
+    Call it like :class:`scipy.integrate.OdeSolution`, with one difference in
+    layout: results are **t-major**, as ``Trajectory.q`` is: ``sol(t)`` has
+    shape ``(n,)`` for a scalar ``t`` and ``(len(t), n)`` for an array
+    (``OdeSolution`` returns ``(n, len(t))``).
+
+    Attributes
+    ----------
+    t, q, v : ndarray
+        The nodes: saved times, positions and velocities, shapes (N,), (N, n).
+    stencil : int
+        Nodes per interpolant (see :func:`stencil_nodes`).
+    """
+
+    t: NDArray[np.float64]
+    q: NDArray[np.float64]
+    v: NDArray[np.float64]
+    stencil: int
+    _trajectory: Trajectory
+
+    @property
+    def t_min(self) -> float:
+        return float(min(self.t[0], self.t[-1]))
+
+    @property
+    def t_max(self) -> float:
+        return float(max(self.t[0], self.t[-1]))
+
+    def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Positions at ``t``."""
+        return self.state(t)[0]
+
+    def velocity(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Velocities at ``t``: the interpolant's derivative."""
+        return self.state(t)[1]
+
+    def momentum(self, t: ArrayLike) -> NDArray[np.float64]:
+        r"""Momenta :math:`p = \partial L/\partial v` of the interpolated (q, v) at ``t``."""
+        q, v = self.state(t)
+        traj = self._trajectory
+        prm = dict(zip(traj.system.params, traj.params, strict=True))
+        return traj.system.legendre(q, v, np.asarray(t, dtype=float), prm)
+
+    def state(self, t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Positions and velocities at ``t`` (scalar or array), t-major."""
+        times = np.asarray(t, dtype=float)
+        flat = np.atleast_1d(times).ravel()
+        if not np.all(np.isfinite(flat)):
+            raise ValueError("t must be finite")
+        tiny = 8 * np.finfo(float).eps * max(1.0, abs(self.t_min), abs(self.t_max))
+        outside = (flat < self.t_min - tiny) | (flat > self.t_max + tiny)
+        if np.any(outside):
+            raise ValueError(
+                f"t = {flat[outside][0]!r} is outside the run's span "
+                f"[{self.t_min!r}, {self.t_max!r}]: dense output does not extrapolate"
+            )
+        forward = self.t[-1] >= self.t[0]
+        nodes = self.t if forward else self.t[::-1]
+        k = np.clip(np.searchsorted(nodes, flat, side="right") - 1, 0, len(nodes) - 2)
+        if not forward:
+            k = len(nodes) - 2 - k  # interval [t_{k}, t_{k+1}] of the run's own order
+        size = min(self.stencil, len(self.t))
+        # the stencil's nodes around the interval [t_k, t_k+1], shifted inwards at the ends
+        first = np.clip(k - (size - 1) // 2, 0, len(self.t) - size)
+        index = first[:, None] + np.arange(size)
+        y, dy = hermite(self.t[index], self.q[index], self.v[index], flat)
+        shape = times.shape + (self.q.shape[1],)
+        return y.reshape(shape), dy.reshape(shape)
+
+
+def dense_output(traj: Trajectory, stencil: int | None = None) -> DenseOutput:
+    """Dense output of a run from its saved states (see the module docstring).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        At least 2 saved states. Every step saved (``save_every=1``) gives
+        the method's order; sparser saves interpolate over their spacing.
+    stencil : int, optional
+        Nodes per interpolant; default :func:`stencil_nodes` of ``order``
+        taken from ``traj.order`` (the method's predicted order).
+    """
+    if len(traj) < 2:
+        raise ValueError(f"dense output needs at least 2 saved states, got {len(traj)}")
+    if stencil is None:
+        stencil = stencil_nodes(traj.order or 2)
+    if isinstance(stencil, bool) or not isinstance(stencil, int) or stencil < 2:
+        raise ValueError(f"stencil must be an int >= 2, got {stencil!r}")
+    v = traj.velocities()
+    return DenseOutput(t=traj.t, q=traj.q, v=v, stencil=stencil, _trajectory=traj)
