@@ -12,6 +12,7 @@ from .errors import (
     OrderReductionWarning,
     RunFailureWarning,
 )
+from .events import Event
 from .integrator import Integrator
 from .method import Galerkin
 from .quadrature import QuadratureRule, gauss_legendre, gauss_lobatto
@@ -26,6 +27,7 @@ __all__ = [
     "ConditioningWarning",
     "ConvergenceError",
     "DegenerateLagrangianError",
+    "Event",
     "Galerkin",
     "InstabilityWarning",
     "Integrator",

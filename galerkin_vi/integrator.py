@@ -23,6 +23,7 @@ from .errors import (
     InstabilityWarning,
     RunFailureWarning,
 )
+from .events import apply_events, as_events, event_function, locate_events
 from .method import Galerkin
 from .newton import CONVERGED, newton_solve
 from .separable import has_stage_form, separable_tables
@@ -347,13 +348,15 @@ class Integrator:
         p0: ArrayLike | None = None,
         *,
         h: float,
-        n_steps: int,
+        n_steps: int | None = None,
         t0: float = 0.0,
         params: Mapping[sp.Symbol | str, float] | None = None,
         save_every: int = 1,
         project: bool = False,
         on_failure: str = "warn",
         dense_output: bool = False,
+        t_span: tuple[float, float] | None = None,
+        events: object = None,
     ) -> Trajectory:
         """Integrate ``n_steps`` steps of size ``h`` from ``q0`` and ``v0`` or ``p0``.
 
@@ -364,8 +367,11 @@ class Integrator:
             Exactly one: initial velocities (mapped by the continuous Legendre
             transform) or momenta.
         h : float
-            Step size (negative integrates backwards).
+            Step size (negative integrates backwards). With ``t_span``, the
+            largest size of equal steps that land on its end: ``h`` is reduced
+            to ``(t1 - t0) / ceil((t1 - t0) / h)``.
         n_steps : int
+            Number of steps; or give ``t_span``.
         t0 : float
         params : mapping, optional
             Parameter values overriding the system's defaults (symbols or names).
@@ -392,6 +398,16 @@ class Integrator:
             time of the run, from Hermite interpolation of the nodal data at
             the method's order (:mod:`galerkin_vi.dense`). Needs every step
             saved (``save_every=1``).
+        t_span : (float, float), optional
+            Integrate from ``t_span[0]`` (instead of ``t0``) to ``t_span[1]``
+            with equal steps of at most ``|h|``; instead of ``n_steps``.
+        events : Event, expression, callable or a list of them, optional
+            Zeros of :math:`g(t, q, v)` to locate (:mod:`galerkin_vi.events`,
+            solve_ivp's conventions: ``terminal``, ``direction``). Their times
+            and states are in ``Trajectory.t_events``, ``q_events``,
+            ``v_events``, ``p_events``, one array per event; a terminal event
+            ends the trajectory at the event, ``status`` 1. Needs
+            ``save_every=1``; the dense output is attached.
 
         Returns
         -------
@@ -419,13 +435,18 @@ class Integrator:
         check_failure_mode(on_failure)
         q0 = self._state("q0", q0)
         h = self._step_size(h)
+        h, n_steps, t0 = _span_steps(h, n_steps, t_span, t0)
         n_steps, save_every, t0 = _run_lengths(n_steps, save_every, t0)
         if not isinstance(dense_output, bool):
             raise TypeError(f"dense_output must be True or False, got {dense_output!r}")
+        event_list = as_events(events)
+        event_functions = [event_function(e, system) for e in event_list]
+        if event_list:
+            dense_output = True
         if dense_output and save_every != 1:
+            what = "events are located" if event_list else "dense_output=True interpolates"
             raise ValueError(
-                f"dense_output=True interpolates between consecutive steps: it needs "
-                f"save_every=1, got {save_every}"
+                f"{what} between consecutive steps: it needs save_every=1, got {save_every}"
             )
         prm = system.parameter_vector(params)
         q0, p0_arr, v0_arr = self._initial_state(q0, v0, p0, t0, prm, project)
@@ -436,6 +457,8 @@ class Integrator:
         traj = replace(traj, order=self.method.order)
         if dense_output and len(traj) >= 2:
             traj = replace(traj, sol=make_dense_output(traj))
+        if event_list:
+            traj = self._with_events(traj, event_list, event_functions, prm)
         if status != 0:
             code = loop_status(status)
             t_fail = t0 + done * h
@@ -447,6 +470,21 @@ class Integrator:
             return failed_run(traj, on_failure, step=int(done), t=t_fail, residual=increment)
         _warn_if_unstable(traj, h)
         return traj
+
+    def _with_events(self, traj, event_list, functions, prm) -> Trajectory:
+        """``traj`` with its events located, cut at the first terminal one."""
+        if traj.sol is None:  # fewer than 2 states: no interval to search
+            return apply_events(traj, event_list, [], self.system)
+
+        def method_step(k: int, tau: float):
+            # one step of the method from node k, of length tau (exact event times)
+            q, p = self.step(traj.q[k], traj.p[k], tau, t0=float(traj.t[k]), params=prm_map)
+            v = self.system.inverse_legendre(q, p, traj.t[k] + tau, prm_map)
+            return q, v
+
+        prm_map = dict(zip(self.system.params, prm, strict=True))
+        records = locate_events(event_list, functions, traj.sol, prm, method_step)
+        return apply_events(traj, event_list, records, self.system)
 
     def _initial_state(self, q0, v0, p0, t0, prm, project):
         """(q0, p0, v0) from the user's data: Legendre transform, constraints checked."""
@@ -723,6 +761,28 @@ def failed_run(traj: Trajectory, on_failure: str, *, step: int, t: float, residu
     # stacklevel 3: the caller of integrate(), not integrate() itself
     warnings.warn(traj.message, RunFailureWarning, stacklevel=3)
     return traj
+
+
+def _span_steps(h: float, n_steps, t_span, t0) -> tuple[float, object, object]:
+    """(h, n_steps, t0) from ``t_span``: equal steps of at most |h| landing on its end."""
+    if t_span is None:
+        if n_steps is None:
+            raise ValueError("give n_steps or t_span")
+        return h, n_steps, t0
+    if n_steps is not None:
+        raise ValueError("give n_steps or t_span, not both")
+    try:
+        start, end = (float(x) for x in t_span)
+    except (TypeError, ValueError):
+        raise ValueError(f"t_span must be two numbers (t0, t_end), got {t_span!r}") from None
+    if not (np.isfinite(start) and np.isfinite(end)) or start == end:
+        raise ValueError(f"t_span must be two different finite times, got {t_span!r}")
+    if t0 != 0.0 and t0 != start:
+        raise ValueError(f"t0 = {t0} and t_span = {t_span!r} disagree: give t_span only")
+    if (end - start) * h < 0:
+        raise ValueError(f"h = {h} points away from t_span's end ({start} -> {end})")
+    steps = int(np.ceil(abs(end - start) / abs(h) * (1 - 4 * np.finfo(float).eps)))
+    return (end - start) / steps, steps, start
 
 
 def _run_lengths(n_steps, save_every, t0) -> tuple[int, int, float]:

@@ -55,6 +55,9 @@ class Trajectory:
     sol : DenseOutput or None
         Positions, velocities and momenta at any time of the run
         (``integrate(..., dense_output=True)``; see :mod:`galerkin_vi.dense`).
+    t_events, q_events, v_events, p_events : list of ndarray or None
+        With ``integrate(..., events=...)``: per event, the times (m,) and
+        the positions, velocities and momenta (m, n) of its occurrences.
     """
 
     t: NDArray[np.float64]
@@ -71,6 +74,10 @@ class Trajectory:
     message: str = "the run reached its last step"
     order: int | None = None
     sol: DenseOutput | None = None
+    t_events: list[NDArray[np.float64]] | None = None
+    q_events: list[NDArray[np.float64]] | None = None
+    v_events: list[NDArray[np.float64]] | None = None
+    p_events: list[NDArray[np.float64]] | None = None
 
     def __len__(self) -> int:
         return self.t.shape[0]
