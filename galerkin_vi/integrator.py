@@ -24,10 +24,11 @@ from .errors import (
     RunFailureWarning,
 )
 from .events import apply_events, as_events, event_function, locate_events
+from .growth import explosive_row
 from .method import Galerkin
 from .newton import CONVERGED, newton_solve
 from .separable import has_stage_form, separable_tables
-from .status import loop_status
+from .status import RunStatus, loop_status
 from .system import LagrangianSystem, is_regular
 from .trajectory import Trajectory
 
@@ -450,26 +451,110 @@ class Integrator:
             )
         prm = system.parameter_vector(params)
         q0, p0_arr, v0_arr = self._initial_state(q0, v0, p0, t0, prm, project)
-        out = RunOutputs.allocate(n_steps, save_every, system.n, any(system.periodic))
         run = (q0, p0_arr, v0_arr, t0, h, n_steps, save_every, prm)
-        status, done, saved, worst, increment = self._run_loop(run, out)
-        traj = out.trajectory(status, done, saved, worst, save_every, system, prm)
-        traj = replace(traj, order=self.method.order)
+        traj, status, done, increment = self._run(run)
+        failure = None
+        if status != 0:
+            code = loop_status(status)
+            t_fail = t0 + done * h
+            # the explicit loop has no iteration, hence no increment to report
+            last = f" (last increment {increment:.3g})" if np.isfinite(increment) else ""
+            failure = f"step {done} (t = {t_fail:.6g}, h = {h:.3g}): {code.cause}{last}"
+            traj = replace(
+                traj,
+                status=code,
+                message=f"{failure}; the states before the failing step are kept. Try a smaller h.",
+            )
+        traj = self._trusted(traj, h, failure)
         if dense_output and len(traj) >= 2:
             traj = replace(traj, sol=make_dense_output(traj))
         if event_list:
             traj = self._with_events(traj, event_list, event_functions, prm)
-        if status != 0:
-            code = loop_status(status)
-            t_fail = t0 + done * h
-            message = (
-                f"step {done} (t = {t_fail:.6g}, h = {h:.3g}): {code.cause} (last increment "
-                f"{increment:.3g}); the states before the failing step are kept. Try a smaller h."
-            )
-            traj = replace(traj, status=code, message=message)
-            return failed_run(traj, on_failure, step=int(done), t=t_fail, residual=increment)
+        if not traj.success:
+            step = int(round((traj.t[-1] - t0) / h))
+            return failed_run(traj, on_failure, step=step, t=float(traj.t[-1]), residual=increment)
         _warn_if_unstable(traj, h)
         return traj
+
+    def _run(self, run: tuple) -> tuple:
+        """The loop's trajectory as it came, its status, steps done and last increment."""
+        n_steps, save_every, prm = run[5], run[6], run[7]
+        system = self.system
+        out = RunOutputs.allocate(n_steps, save_every, system.n, any(system.periodic))
+        status, done, saved, worst, increment = self._run_loop(run, out)
+        traj = out.trajectory(status, done, saved, worst, save_every, system, prm)
+        return replace(traj, order=self.method.order), status, done, increment
+
+    def _trusted(self, traj: Trajectory, h: float, failure: str | None) -> Trajectory:
+        """``traj`` without the states reached by explosive growth (:mod:`.growth`).
+
+        Growth is judged per step whatever ``save_every`` is: the steps between
+        the saved rows where it shows (or, after a failure, between the last
+        two) are run again one by one, at most ``save_every`` steps.
+        """
+        if len(traj) < 2:
+            return traj
+        steps = np.round((traj.t - traj.t[0]) / h).astype(np.int64)
+        cut = explosive_row(traj.q, traj.p, steps)
+        end = cut if cut is not None else len(traj) - 1 if failure is not None else None
+        if end is None:
+            return traj
+        gap = int(steps[end] - steps[end - 1])
+        if gap > 1:
+            fine = self._steps_from(traj, end - 1, h, gap)
+            inner = explosive_row(fine.q, fine.p, np.arange(len(fine)))
+            if inner is not None:
+                # the last trusted state lies between saved rows end - 1 and end
+                kept = slice(0, end)
+                head = replace(traj, t=traj.t[kept], q=traj.q[kept], p=traj.p[kept])
+                if inner > 1:
+                    head = replace(
+                        head,
+                        t=np.append(head.t, fine.t[inner - 1]),
+                        q=np.vstack([head.q, fine.q[inner - 1]]),
+                        p=np.vstack([head.p, fine.p[inner - 1]]),
+                    )
+                step = int(steps[end - 1]) + inner
+                return self._untrusted(head, len(head), step, fine, inner, h, failure)
+        if cut is None:
+            return traj
+        return self._untrusted(traj, cut, int(steps[cut]), traj, cut, h, failure)
+
+    def _steps_from(self, traj: Trajectory, row: int, h: float, m: int) -> Trajectory:
+        """The m steps from saved row ``row``, every one saved."""
+        q0, p0, t0, prm = traj.q[row], traj.p[row], float(traj.t[row]), traj.params
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            q0, p0, v0 = self._initial_state(q0, None, p0, t0, prm, False)
+            # the raw run, failures and explosions included: they are what is looked for
+            return self._run((q0, p0, v0, t0, h, m, 1, prm))[0]
+
+    @staticmethod
+    def _untrusted(traj, keep, step, rows, r, h, failure) -> Trajectory:
+        """``traj`` cut to its first ``keep`` rows, flagged unstable from ``step`` on."""
+        with np.errstate(all="ignore"):
+            size = np.maximum(np.max(np.abs(rows.q[r])), np.max(np.abs(rows.p[r])))
+            before = max(1.0, np.max(np.abs(rows.q[r - 1])), np.max(np.abs(rows.p[r - 1])))
+        # named like a loop failure: by the step's start, the last state kept
+        t_step = traj.t[0] + (step - 1) * h
+        message = (
+            f"step {step - 1} (t = {t_step:.6g}, h = {h:.3g}): {RunStatus.UNSTABLE.cause} (the "
+            f"state grew from size {before:.3g} to {size:.3g} in one step); the states from "
+            "there on are dropped"
+        )
+        if failure is not None:
+            message += f", and then {failure}"
+        message += ". Try a smaller h."
+        kept = slice(0, keep)
+        return replace(
+            traj,
+            t=traj.t[kept],
+            q=traj.q[kept],
+            p=traj.p[kept],
+            q_reduced=None if traj.q_reduced is None else traj.q_reduced[kept],
+            status=RunStatus.UNSTABLE,
+            message=message,
+        )
 
     def _with_events(self, traj, event_list, functions, prm) -> Trajectory:
         """``traj`` with its events located, cut at the first terminal one."""

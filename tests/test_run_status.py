@@ -78,7 +78,8 @@ def test_a_failed_stream_ends_with_the_flagged_chunk():
     assert all(c.success for c in chunks[:-1]) and not chunks[-1].success
     whole = _quietly(lambda: integrator.integrate([1.0], [0.0], h=0.01, n_steps=1000))
     # the chunks' steps end where one run's do, and the message counts the whole run's steps
-    fail_step = whole.n_steps - 1
+    # near the blow-up the growth is explosive: the last trusted step names the failure
+    fail_step = round(whole.t[-1] / 0.01)
     assert f"step {fail_step} of the whole run" in chunks[-1].message
     assert chunks[-1].t[-1] == pytest.approx(whole.t[-1], rel=1e-14)
     assert sum(len(c) for c in chunks) == len(whole)
@@ -118,3 +119,71 @@ def test_loop_codes_map_to_statuses():
         loop_status(7)
     assert all(s.cause for s in RunStatus)
     assert [s for s in RunStatus if s >= 0] == [RunStatus.COMPLETED, RunStatus.TERMINATED]
+
+
+# ------------------------------------------------------------ explosive growth
+STIFF_QUARTIC = gvi.LagrangianSystem(v**2 / 2 - 1e4 * q**2 / 2 - q**4, [q], [v])
+VERLET = gvi.Galerkin(1, gvi.gauss_lobatto(2))
+
+
+@pytest.mark.parametrize("save_every", [1, 3, 10])
+def test_explosive_steps_are_dropped_whatever_save_every(save_every):
+    # h omega = 50: Verlet went 1, -1.2e3, 2.0e9, -7.5e27, 4.2e83, then inf; those
+    # states were returned unflagged
+    integrator = gvi.Integrator(STIFF_QUARTIC, VERLET)
+    assert integrator.kernel_path == "explicit"
+    with np.errstate(all="ignore"), pytest.warns(gvi.RunFailureWarning) as caught:
+        traj = integrator.integrate([1.0], [0.0], h=0.5, n_steps=400, save_every=save_every)
+    assert traj.status == RunStatus.UNSTABLE and not traj.success
+    assert len(traj) == 1 and traj.q[0, 0] == 1.0  # only the initial state is trusted
+    message = str(caught[0].message)
+    assert message.startswith("step 0 (t = 0, h = 0.5): the solution grew explosively")
+    # the explicit loop's own failure follows, and it is not called a Newton failure
+    assert "then step 4 (t = 2, h = 0.5): non-finite values" in message
+    assert "Newton" not in message and "increment" not in message
+
+
+@pytest.mark.parametrize("save_every", [1, 5, 50])
+def test_the_last_trusted_step_is_found_between_saved_states(save_every):
+    integrator = gvi.Integrator(STIFF_QUARTIC, VERLET)
+    traj = _quietly(
+        lambda: integrator.integrate([1.0], [0.0], h=0.021, n_steps=400, save_every=save_every)
+    )
+    # measured: step 8 grows by a factor 9e3; step 7 (t = 0.147) is the last one kept
+    assert traj.status == RunStatus.UNSTABLE and traj.message.startswith("step 7 (t = 0.147")
+    assert traj.t[-1] == pytest.approx(0.147, rel=1e-14)
+    assert np.all(np.abs(traj.q) < 100)
+
+
+def test_a_run_that_overflows_without_failing_is_flagged():
+    stiff = gvi.LagrangianSystem(v**2 / 2 - 1e4 * q**2 / 2, [q], [v])
+    traj = _quietly(
+        lambda: gvi.Integrator(stiff, VERLET).integrate([1.0], [0.0], h=0.5, n_steps=50)
+    )
+    # growth by (h omega)^2 = 2500 per step to 1e169, all finite: not a result
+    assert traj.status == RunStatus.UNSTABLE and len(traj) == 1
+
+
+def test_legitimate_growth_is_not_flagged():
+    g = sp.Symbol("g")
+    fall = gvi.LagrangianSystem(v**2 / 2 - g * q, [q], [v], params={g: 9.81})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", gvi.RunFailureWarning)
+        traj = gvi.Integrator(fall, gvi.Galerkin(2)).integrate(
+            [0.0], [0.0], h=0.01, n_steps=100_000, save_every=20_000
+        )
+    # from rest to q = -4.9e6 with p_0 = 0: a factor 1e5 between saved states, not per step
+    assert traj.success and traj.q[-1, 0] == pytest.approx(-9.81 * 1000.0**2 / 2, rel=1e-9)
+
+
+def test_explosive_row():
+    from galerkin_vi.growth import explosive_row
+
+    steps = np.arange(4)
+    calm = np.array([[0.0], [1e-8], [1e-3], [0.5]])  # from rest: measured against 1
+    assert explosive_row(calm, calm, steps) is None
+    wild = np.array([[1.0], [2.0], [5e3], [1e9]])
+    assert explosive_row(wild, wild, steps) == 2
+    assert explosive_row(wild, wild, steps * 10) is None  # factors over 10 steps each
+    broken = np.array([[1.0], [np.nan]])
+    assert explosive_row(broken, broken, np.arange(2)) == 1
