@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from . import codegen
 from .backends import numpy as numpy_backend
 from .backends import numpy_constrained, resolve_backend
+from .chunks import run_in_chunks
 from .constraints import consistent_initial_state, project_momentum
 from .dense import dense_output as make_dense_output
 from .errors import (
@@ -358,6 +359,7 @@ class Integrator:
         dense_output: bool = False,
         t_span: tuple[float, float] | None = None,
         events: object = None,
+        progress: bool | None = None,
     ) -> Trajectory:
         """Integrate ``n_steps`` steps of size ``h`` from ``q0`` and ``v0`` or ``p0``.
 
@@ -409,6 +411,12 @@ class Integrator:
             ``v_events``, ``p_events``, one array per event; a terminal event
             ends the trajectory at the event, ``status`` 1. Needs
             ``save_every=1``; the dense output is attached.
+        progress : bool or None
+            A progress bar (tqdm): always, never, or (None, default) for runs
+            predicted to take over 2 s when stderr is a terminal. Long runs
+            go in chunks of about 0.5 s (:mod:`galerkin_vi.chunks`); Ctrl-C
+            between them ends the run with the states computed so far,
+            ``status`` :attr:`RunStatus.INTERRUPTED` and a warning.
 
         Returns
         -------
@@ -452,7 +460,24 @@ class Integrator:
         prm = system.parameter_vector(params)
         q0, p0_arr, v0_arr = self._initial_state(q0, v0, p0, t0, prm, project)
         run = (q0, p0_arr, v0_arr, t0, h, n_steps, save_every, prm)
-        traj, status, done, increment = self._run(run)
+        if progress is not None and not isinstance(progress, bool):
+            raise TypeError(f"progress must be True, False or None, got {progress!r}")
+
+        def restart(q, p, t):
+            return self._initial_state(q, None, p, t, prm, False)
+
+        traj, status, done, increment, interrupted = run_in_chunks(
+            run, self._run, restart, progress
+        )
+        if interrupted:
+            t_stop = float(traj.t[-1])
+            message = (
+                f"{RunStatus.INTERRUPTED.cause} after step {done} (t = {t_stop:.6g}); the "
+                "states computed so far are kept"
+            )
+            traj = replace(traj, status=RunStatus.INTERRUPTED, message=message)
+            warnings.warn(message, RunFailureWarning, stacklevel=2)
+            return traj
         failure = None
         if status != 0:
             code = loop_status(status)
