@@ -360,6 +360,7 @@ class Integrator:
         t_span: tuple[float, float] | None = None,
         events: object = None,
         progress: bool | None = None,
+        t_eval: ArrayLike | None = None,
     ) -> Trajectory:
         """Integrate ``n_steps`` steps of size ``h`` from ``q0`` and ``v0`` or ``p0``.
 
@@ -411,6 +412,11 @@ class Integrator:
             ``v_events``, ``p_events``, one array per event; a terminal event
             ends the trajectory at the event, ``status`` 1. Needs
             ``save_every=1``; the dense output is attached.
+        t_eval : array_like, optional
+            Times at which to return the states, in the run's span and in the
+            direction of integration: the rows of the result are the dense
+            output there (positions, and the momenta of its velocities);
+            ``Trajectory.sol`` keeps every step. Needs ``save_every=1``.
         progress : bool or None
             A progress bar (tqdm): always, never, or (None, default) for runs
             predicted to take over 2 s when stderr is a terminal. Long runs
@@ -450,7 +456,8 @@ class Integrator:
             raise TypeError(f"dense_output must be True or False, got {dense_output!r}")
         event_list = as_events(events)
         event_functions = [event_function(e, system) for e in event_list]
-        if event_list:
+        times = _requested_times(t_eval, t0, h, n_steps)
+        if event_list or times is not None:
             dense_output = True
         if dense_output and save_every != 1:
             what = "events are located" if event_list else "dense_output=True interpolates"
@@ -495,6 +502,8 @@ class Integrator:
             traj = replace(traj, sol=make_dense_output(traj))
         if event_list:
             traj = self._with_events(traj, event_list, event_functions, prm)
+        if times is not None and traj.sol is not None:
+            traj = _at_times(traj, times)
         if not traj.success:
             step = int(round((traj.t[-1] - t0) / h))
             return failed_run(traj, on_failure, step=step, t=float(traj.t[-1]), residual=increment)
@@ -871,6 +880,30 @@ def failed_run(traj: Trajectory, on_failure: str, *, step: int, t: float, residu
     # stacklevel 3: the caller of integrate(), not integrate() itself
     warnings.warn(traj.message, RunFailureWarning, stacklevel=3)
     return traj
+
+
+def _requested_times(t_eval, t0: float, h: float, n_steps: int) -> NDArray | None:
+    """``t_eval`` checked: finite, in the span, monotone in the run's direction."""
+    if t_eval is None:
+        return None
+    times = np.atleast_1d(np.asarray(t_eval, dtype=float))
+    if times.ndim != 1 or not np.all(np.isfinite(times)):
+        raise ValueError("t_eval must be a 1-d array of finite times")
+    end = t0 + n_steps * h
+    lo, hi = min(t0, end), max(t0, end)
+    tiny = 8 * np.finfo(float).eps * max(1.0, abs(lo), abs(hi))
+    if times.size and (times.min() < lo - tiny or times.max() > hi + tiny):
+        raise ValueError(f"t_eval must lie in the run's span [{lo}, {hi}]")
+    if np.any(np.diff(times) * h < 0):
+        raise ValueError("t_eval must be sorted in the direction of integration")
+    return np.clip(times, lo, hi)
+
+
+def _at_times(traj: Trajectory, times: NDArray) -> Trajectory:
+    """``traj`` with rows at ``times`` from its dense output (a run cut short: those reached)."""
+    sol = traj.sol
+    reached = times[(times >= sol.t_min) & (times <= sol.t_max)]
+    return replace(traj, t=reached, q=sol(reached), p=sol.momentum(reached), q_reduced=None)
 
 
 def _span_steps(h: float, n_steps, t_span, t0) -> tuple[float, object, object]:

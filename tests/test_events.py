@@ -128,3 +128,19 @@ def test_bad_event_and_span_arguments():
         integrator.integrate([1.0], [0.0], h=0.1, t_span=(1, 1))
     with pytest.raises(ValueError, match="disagree"):
         integrator.integrate([1.0], [0.0], h=0.1, t_span=(0, 1), t0=0.5)
+
+
+def test_t_eval_gives_the_dense_output_at_the_requested_times():
+    integrator = _integrator()
+    times = np.linspace(0.0, 3.0, 7) + 0.013
+    traj = integrator.integrate([1.0], [0.0], h=0.1, t_span=(0.0, 3.1), t_eval=times)
+    np.testing.assert_array_equal(traj.t, times)
+    np.testing.assert_allclose(traj.q[:, 0], np.cos(times), atol=2e-6)
+    np.testing.assert_allclose(traj.p[:, 0], -np.sin(times), atol=2e-6)  # p = v
+    assert traj.sol.t_max == pytest.approx(3.1)  # every step is kept in the dense output
+    with pytest.raises(ValueError, match="in the run's span"):
+        integrator.integrate([1.0], [0.0], h=0.1, n_steps=10, t_eval=[0.5, 1.5])
+    with pytest.raises(ValueError, match="sorted in the direction"):
+        integrator.integrate([1.0], [0.0], h=0.1, n_steps=10, t_eval=[0.5, 0.2])
+    with pytest.raises(ValueError, match="needs save_every=1"):
+        integrator.integrate([1.0], [0.0], h=0.1, n_steps=10, save_every=2, t_eval=[0.5])
