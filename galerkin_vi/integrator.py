@@ -18,6 +18,7 @@ from .backends import numpy_constrained, resolve_backend
 from .chunks import run_in_chunks
 from .constraints import consistent_initial_state, project_momentum
 from .dense import dense_output as make_dense_output
+from .ensemble import integrate_many
 from .errors import (
     ConvergenceError,
     DegenerateLagrangianError,
@@ -787,6 +788,51 @@ class Integrator:
                 q_start = chunk.q[-1]
             start = {"v0": None, "p0": chunk.p[-1]}
             t_start = float(t0) + done * h  # not chunk.t[-1]: no rounding accumulates
+
+    def integrate_many(
+        self,
+        q0s: ArrayLike,
+        v0s: ArrayLike | None = None,
+        p0s: ArrayLike | None = None,
+        *,
+        params=None,
+        executor=None,
+        workers: int | None = None,
+        **run,
+    ):
+        """:meth:`integrate` for many initial states and/or parameter sets at once.
+
+        Parameters
+        ----------
+        q0s : array_like, shape (m, n)
+        v0s, p0s : array_like, shape (m, n) or (n,)
+            Exactly one; a single row is used for every member (and a single
+            ``q0s`` row likewise).
+        params : mapping or sequence of mappings, optional
+            Parameter values: each a number or an array of m values (a sweep),
+            or one mapping per member. Never compiles anything.
+        executor : concurrent.futures.Executor, optional
+            Where the members run. Default: a thread pool of ``workers``
+            threads (default: all cores), in this process; the compiled loops
+            release the GIL. A process pool or Dask's ``Client.get_executor()``
+            receives (system, method, start, parameters) per member and builds
+            the integrator once per worker process from the cache.
+        workers : int, optional
+            Threads of the default executor.
+        **run
+            As for :meth:`integrate` (``h``, ``n_steps`` or ``t_span``,
+            ``save_every``, ``events``, ``on_failure``, ...).
+
+        Returns
+        -------
+        Ensemble
+            ``.trajectories`` in the members' order, each bitwise the one-by-one
+            run's; ``.q``, ``.p`` stacked (m, N, n) when the saved times agree;
+            ``.success`` and ``.status`` per member.
+        """
+        return integrate_many(
+            self, q0s, v0s, p0s, params=params, executor=executor, workers=workers, **run
+        )
 
     def step(
         self, q0: ArrayLike, p0: ArrayLike, h: float, t0: float = 0.0, params=None

@@ -19,6 +19,7 @@ NumPy expressions took 2 ms a call, this path about 0.1 ms.
 from __future__ import annotations
 
 import ctypes
+import threading
 
 import numpy as np
 from numpy.typing import NDArray
@@ -71,6 +72,8 @@ class PointLegendre:
         # the stored L_vv entries last found regular: a constant mass matrix is
         # tested once, not per call (100 coordinates: an LU, ~0.1 ms)
         self._regular_entries: NDArray[np.float64] | None = None
+        # the buffer is shared: threads of an ensemble (integrate_many) take turns
+        self._lock = threading.Lock()
 
     def at(self, t: float, q, v, prm) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(L_v, L_vv) at (t, q, v) with parameter vector ``prm``."""
@@ -102,13 +105,15 @@ class PointLegendre:
 
     def momenta(self, t: float, q, v, prm) -> NDArray[np.float64] | None:
         r""":math:`p = L_v(t, q, v)`; None where :math:`L_{vv}` is not regular or not finite."""
-        p, m = self.at(t, q, v, prm)
-        return p if self._regular(m) else None
+        with self._lock:
+            p, m = self.at(t, q, v, prm)
+            return p if self._regular(m) else None
 
     def velocities_of_quadratic(self, t: float, q, p, prm) -> NDArray[np.float64] | None:
         r"""Velocities of momenta ``p`` when L is quadratic in v: one solve,
         :math:`v = L_{vv}^{-1} (p - L_v(t, q, 0))`; None where :math:`L_{vv}` is singular."""
-        base, m = self.at(t, q, np.zeros(self.n), prm)
-        if not self._regular(m):
-            return None
+        with self._lock:
+            base, m = self.at(t, q, np.zeros(self.n), prm)
+            if not self._regular(m):
+                return None
         return np.linalg.solve(m, _vector(p) - base)
