@@ -22,15 +22,13 @@ the nodes need not be equally spaced (adaptive runs, a final landing step).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-if TYPE_CHECKING:  # a Trajectory holds a DenseOutput: no import at run time
-    from .trajectory import Trajectory
+from .system import LagrangianSystem
 
-__all__ = ["DenseOutput", "dense_output", "hermite", "stencil_nodes"]
+__all__ = ["DenseOutput", "hermite", "stencil_nodes"]
 
 
 def stencil_nodes(order: int) -> int:
@@ -112,13 +110,19 @@ class DenseOutput:
         The nodes: saved times, positions and velocities, shapes (N,), (N, n).
     stencil : int
         Nodes per interpolant (see :func:`stencil_nodes`).
+    system : LagrangianSystem
+    params : ndarray
+        The run's parameter values (for the momenta).
+
+    Built by :meth:`Trajectory.dense` (and ``integrate(..., dense_output=True)``).
     """
 
     t: NDArray[np.float64]
     q: NDArray[np.float64]
     v: NDArray[np.float64]
     stencil: int
-    _trajectory: Trajectory
+    system: LagrangianSystem
+    params: NDArray[np.float64]
 
     @property
     def t_min(self) -> float:
@@ -139,9 +143,8 @@ class DenseOutput:
     def momentum(self, t: ArrayLike) -> NDArray[np.float64]:
         r"""Momenta :math:`p = \partial L/\partial v` of the interpolated (q, v) at ``t``."""
         q, v = self.state(t)
-        traj = self._trajectory
-        prm = dict(zip(traj.system.params, traj.params, strict=True))
-        return traj.system.legendre(q, v, np.asarray(t, dtype=float), prm)
+        prm = dict(zip(self.system.params, self.params, strict=True))
+        return self.system.legendre(q, v, np.asarray(t, dtype=float), prm)
 
     def state(self, t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Positions and velocities at ``t`` (scalar or array), t-major."""
@@ -168,25 +171,3 @@ class DenseOutput:
         y, dy = hermite(self.t[index], self.q[index], self.v[index], flat)
         shape = times.shape + (self.q.shape[1],)
         return y.reshape(shape), dy.reshape(shape)
-
-
-def dense_output(traj: Trajectory, stencil: int | None = None) -> DenseOutput:
-    """Dense output of a run from its saved states (see the module docstring).
-
-    Parameters
-    ----------
-    traj : Trajectory
-        At least 2 saved states. Every step saved (``save_every=1``) gives
-        the method's order; sparser saves interpolate over their spacing.
-    stencil : int, optional
-        Nodes per interpolant; default :func:`stencil_nodes` of ``order``
-        taken from ``traj.order`` (the method's predicted order).
-    """
-    if len(traj) < 2:
-        raise ValueError(f"dense output needs at least 2 saved states, got {len(traj)}")
-    if stencil is None:
-        stencil = stencil_nodes(traj.order or 2)
-    if isinstance(stencil, bool) or not isinstance(stencil, int) or stencil < 2:
-        raise ValueError(f"stencil must be an int >= 2, got {stencil!r}")
-    v = traj.velocities()
-    return DenseOutput(t=traj.t, q=traj.q, v=v, stencil=stencil, _trajectory=traj)

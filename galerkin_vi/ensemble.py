@@ -18,16 +18,13 @@ import pickle
 from collections.abc import Mapping, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .trajectory import Trajectory
-
-if TYPE_CHECKING:  # the integrator imports this module
-    from .integrator import Integrator
 
 __all__ = ["Ensemble", "integrate_many", "member_parameters"]
 
@@ -118,7 +115,7 @@ def _starts(q0s: ArrayLike, v0s, p0s, n: int) -> tuple[NDArray, str, NDArray]:
 
 
 def integrate_many(
-    integrator: Integrator,
+    integrator: Any,  # an Integrator (which imports this module)
     q0s: ArrayLike,
     v0s: ArrayLike | None = None,
     p0s: ArrayLike | None = None,
@@ -142,6 +139,7 @@ def integrate_many(
             ]
             return Ensemble.of([f.result() for f in futures])
     spec = (
+        type(integrator),
         integrator.system, integrator.method, integrator.backend, integrator.tol,
         integrator.maxiter, integrator.specialize,
     )  # fmt: skip
@@ -156,12 +154,10 @@ _INTEGRATORS: dict = {}
 
 def _member(spec, q0, start, params, run) -> Trajectory:
     """One member in a worker process: the integrator built once per process."""
-    from .integrator import Integrator
-
-    system, method, backend, tol, maxiter, specialize = spec
+    integrator_class, system, method, backend, tol, maxiter, specialize = spec
     key = (system._analysis_key, pickle.dumps(method), backend, tol, maxiter, specialize)
     if key not in _INTEGRATORS:
-        _INTEGRATORS[key] = Integrator(
+        _INTEGRATORS[key] = integrator_class(
             system, method, backend=backend, tol=tol, maxiter=maxiter, specialize=specialize
         )
     return _INTEGRATORS[key].integrate(q0, **start, params=params, **run)

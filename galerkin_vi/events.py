@@ -301,7 +301,7 @@ def apply_events(traj, events: Sequence[Event], records: Sequence[EventRecord], 
     sol = traj.sol
     if sol is not None:
         v = np.vstack([sol.v[: k + 1], v_e])
-        sol = DenseOutput(t=t, q=q, v=v, stencil=sol.stencil, _trajectory=sol._trajectory)
+        sol = replace(sol, t=t, q=q, v=v)
     message = (
         f"terminal event {which} at t = {stop:.9g} (occurrence {i + 1}); the run's "
         f"states after it are dropped"

@@ -17,7 +17,6 @@ from .backends import numpy as numpy_backend
 from .backends import numpy_constrained, resolve_backend
 from .chunks import run_in_chunks
 from .constraints import consistent_initial_state, project_momentum
-from .dense import dense_output as make_dense_output
 from .ensemble import integrate_many
 from .errors import (
     ConvergenceError,
@@ -500,7 +499,7 @@ class Integrator:
             )
         traj = self._trusted(traj, h, failure)
         if dense_output and len(traj) >= 2:
-            traj = replace(traj, sol=make_dense_output(traj))
+            traj = replace(traj, sol=traj.dense())
         if event_list:
             traj = self._with_events(traj, event_list, event_functions, prm)
         if times is not None and traj.sol is not None:

@@ -9,7 +9,7 @@ import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 
-from .dense import DenseOutput
+from .dense import DenseOutput, stencil_nodes
 from .status import RunStatus
 from .system import LagrangianSystem
 
@@ -116,6 +116,28 @@ class Trajectory:
         These have the method's full order, unlike the polynomial's :math:`\dot q_d`.
         """
         return self.system.inverse_legendre(self._reduced_q(), self.p, self.t, self._param_dict())
+
+    def dense(self, stencil: int | None = None) -> DenseOutput:
+        """Dense output of the run from its saved states (:mod:`galerkin_vi.dense`).
+
+        Parameters
+        ----------
+        stencil : int, optional
+            Nodes per interpolant; default :func:`~galerkin_vi.dense.stencil_nodes`
+            of the method's order (``order``; 2 when unknown). Every step saved
+            (``save_every=1``) gives the method's order; sparser saves
+            interpolate over their spacing.
+        """
+        if len(self) < 2:
+            raise ValueError(f"dense output needs at least 2 saved states, got {len(self)}")
+        if stencil is None:
+            stencil = stencil_nodes(self.order or 2)
+        if isinstance(stencil, bool) or not isinstance(stencil, int) or stencil < 2:
+            raise ValueError(f"stencil must be an int >= 2, got {stencil!r}")
+        return DenseOutput(
+            t=self.t, q=self.q, v=self.velocities(), stencil=stencil, system=self.system,
+            params=self.params,
+        )  # fmt: skip
 
     def energy(self) -> NDArray[np.float64]:
         """Energy :math:`H(t_k, q_k, p_k)` at every saved point."""

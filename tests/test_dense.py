@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import galerkin_vi as gvi
-from galerkin_vi.dense import dense_output, hermite, stencil_nodes
+from galerkin_vi.dense import hermite, stencil_nodes
 
 q, v = sp.symbols("q v")
 OSCILLATOR = gvi.LagrangianSystem(v**2 / 2 - q**2 / 2, [q], [v])  # q = cos t from (1, 0)
@@ -110,6 +110,6 @@ def test_dense_output_arguments():
     with pytest.raises(ValueError, match="finite"):
         sol(np.nan)
     # any trajectory, after the fact, with a chosen stencil
-    assert dense_output(plain, stencil=2).stencil == 2
+    assert plain.dense(stencil=2).stencil == 2
     with pytest.raises(ValueError, match="at least 2 saved states"):
-        dense_output(integrator.integrate([1.0], [0.0], h=0.1, n_steps=0))
+        integrator.integrate([1.0], [0.0], h=0.1, n_steps=0).dense()
