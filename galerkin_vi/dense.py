@@ -102,7 +102,8 @@ class DenseOutput:
     Call it like :class:`scipy.integrate.OdeSolution`, with one difference in
     layout: results are **t-major**, as ``Trajectory.q`` is: ``sol(t)`` has
     shape ``(n,)`` for a scalar ``t`` and ``(len(t), n)`` for an array
-    (``OdeSolution`` returns ``(n, len(t))``).
+    (``OdeSolution`` returns ``(n, len(t))``). Built by
+    :meth:`Trajectory.dense` (and ``integrate(..., dense_output=True)``).
 
     Attributes
     ----------
@@ -111,10 +112,9 @@ class DenseOutput:
     stencil : int
         Nodes per interpolant (see :func:`stencil_nodes`).
     system : LagrangianSystem
+        The run's system (for the momenta).
     params : ndarray
-        The run's parameter values (for the momenta).
-
-    Built by :meth:`Trajectory.dense` (and ``integrate(..., dense_output=True)``).
+        The run's parameter values.
     """
 
     t: NDArray[np.float64]
