@@ -25,7 +25,7 @@ from .errors import (
     RunFailureWarning,
 )
 from .events import apply_events, as_events, event_function, locate_events
-from .growth import explosive_row
+from .growth import EXPLOSIVE_GROWTH, explosive_row
 from .method import Galerkin
 from .newton import CONVERGED, newton_solve
 from .separable import has_stage_form, separable_tables
@@ -516,8 +516,10 @@ class Integrator:
         system = self.system
         out = RunOutputs.allocate(n_steps, save_every, system.n, any(system.periodic))
         status, done, saved, worst, increment = self._run_loop(run, out)
-        traj = out.trajectory(status, done, saved, worst, save_every, system, prm)
-        return replace(traj, order=self.method.order), status, done, increment
+        traj = out.trajectory(
+            status, done, saved, worst, save_every, system, prm, self.method.order
+        )
+        return traj, status, done, increment
 
     def _trusted(self, traj: Trajectory, h: float, failure: str | None) -> Trajectory:
         """``traj`` without the states reached by explosive growth (:mod:`.growth`).
@@ -528,6 +530,14 @@ class Integrator:
         """
         if len(traj) < 2:
             return traj
+        if failure is None:
+            # a completed run whose last state stays within the growth bound of its
+            # first is not examined row by row: explosive growth does not calm down
+            # again (it overflows), and the full test costs 20-60 us per short call
+            ends = np.abs(np.concatenate((traj.q[0], traj.p[0], traj.q[-1], traj.p[-1])))
+            n = traj.q.shape[1]
+            if ends[2 * n :].max() <= EXPLOSIVE_GROWTH * max(1.0, ends[: 2 * n].max()):
+                return traj
         steps = np.round((traj.t - traj.t[0]) / h).astype(np.int64)
         cut = explosive_row(traj.q, traj.p, steps)
         end = cut if cut is not None else len(traj) - 1 if failure is not None else None
@@ -1025,7 +1035,9 @@ class RunOutputs:
         """(t, q, p, turns), in the loops' argument order."""
         return self.t, self.q, self.p, self.turns
 
-    def trajectory(self, status, done, saved, worst, save_every, system, prm) -> Trajectory:
+    def trajectory(
+        self, status, done, saved, worst, save_every, system, prm, order=None
+    ) -> Trajectory:
         """The saved rows as a :class:`Trajectory` (angles continued across turns)."""
         q_saved, q_reduced = self.q[:saved], None
         if self.periodic:
@@ -1043,6 +1055,7 @@ class RunOutputs:
             max_residual=float(worst),
             system=system,
             params=prm,
+            order=order,
         )
 
 
