@@ -156,7 +156,7 @@ class DenseOutput:
         outside = (flat < self.t_min - tiny) | (flat > self.t_max + tiny)
         if np.any(outside):
             raise ValueError(
-                f"t = {flat[outside][0]!r} is outside the run's span "
+                f"t = {float(flat[outside][0])!r} is outside the run's span "
                 f"[{self.t_min!r}, {self.t_max!r}]: dense output does not extrapolate"
             )
         forward = self.t[-1] >= self.t[0]

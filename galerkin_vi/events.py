@@ -149,11 +149,18 @@ def event_function(event: Event, system: LagrangianSystem) -> Callable:
     return called
 
 
-def _crossings(g: NDArray, direction: float) -> NDArray:
-    """Intervals k whose sign of g changes in ``direction`` (a zero at a node: once, on arrival)."""
+def _crossings(g: NDArray, direction: float, from_start: bool = True) -> NDArray:
+    """Intervals k whose sign of g changes in ``direction``.
+
+    A zero at a node counts once, in the interval it ends; a zero at the
+    run's first node (``from_start``) counts when g then moves in
+    ``direction`` (as in solve_ivp, which reports an event at t0 there).
+    """
     before, after = g[:-1], g[1:]
-    up = (before < 0) & (after >= 0)
-    down = (before > 0) & (after <= 0)
+    start = np.zeros(before.shape, dtype=bool)
+    start[0] = from_start and before[0] == 0.0
+    up = ((before < 0) | start) & (after > 0) | (before < 0) & (after == 0)
+    down = ((before > 0) | start) & (after < 0) | (before > 0) & (after == 0)
     mask = up if direction > 0 else down if direction < 0 else up | down
     return np.flatnonzero(mask)
 
@@ -194,6 +201,35 @@ def _roots(fun: Callable, a: NDArray, b: NDArray, fa: NDArray, fb: NDArray) -> N
     if live.any():  # not reached in practice: the bracket's better end
         root[live] = np.where(np.abs(fa[live]) < np.abs(fb[live]), a[live], b[live])
     return root
+
+
+def terminal_stop(events: Sequence[Event], functions: Sequence[Callable], prm: NDArray):
+    """``stop(chunk) -> bool`` for a chunked run: whether a terminal event has occurred.
+
+    Counts each terminal event's crossings at the nodes of the chunks seen so
+    far (each later chunk starts at the previous one's last node); None when
+    no event is terminal. The run then stops after the chunk in which the
+    count is reached, not at the end of its span.
+    """
+    terminal = [(e, g) for e, g in zip(events, functions, strict=True) if e.stop_after]
+    if not terminal:
+        return None
+    counts = [0] * len(terminal)
+    first = [True]
+
+    def stop(chunk) -> bool:
+        if len(chunk) < 2:
+            return False
+        v = chunk.velocities()
+        reached = False
+        for i, (event, g) in enumerate(terminal):
+            values = g(chunk.t, chunk.q, v, prm)
+            counts[i] += _crossings(values, float(event.direction), first[0]).size
+            reached |= counts[i] >= event.stop_after
+        first[0] = False
+        return reached
+
+    return stop
 
 
 def locate_events(

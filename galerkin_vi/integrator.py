@@ -24,7 +24,7 @@ from .errors import (
     InstabilityWarning,
     RunFailureWarning,
 )
-from .events import apply_events, as_events, event_function, locate_events
+from .events import apply_events, as_events, event_function, locate_events, terminal_stop
 from .growth import EXPLOSIVE_GROWTH, explosive_row
 from .method import Galerkin
 from .newton import CONVERGED, newton_solve
@@ -474,7 +474,7 @@ class Integrator:
             return self._initial_state(q, None, p, t, prm, False)
 
         traj, status, done, increment, interrupted = run_in_chunks(
-            run, self._run, restart, progress
+            run, self._run, restart, progress, terminal_stop(event_list, event_functions, prm)
         )
         if interrupted:
             t_stop = float(traj.t[-1])

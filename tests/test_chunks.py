@@ -25,7 +25,7 @@ def small_chunks(monkeypatch):
     """Chunks of a few steps, whatever the machine's speed."""
     monkeypatch.setattr(chunks, "FIRST_CHUNK", 40)
     monkeypatch.setattr(chunks, "MIN_CHUNK", 50)
-    monkeypatch.setattr(chunks, "CHUNK_SECONDS", 1e-9)
+    monkeypatch.setattr(chunks, "CHUNK_WORK", 1)
 
 
 def _run(save_every=1, **kw):
@@ -98,7 +98,7 @@ def test_ctrl_c_stops_a_long_compiled_run_and_keeps_its_states():
         child.kill()
     status, n_steps, rows, t_last, warned = out.split()
     assert status == "INTERRUPTED" and int(warned) == 1
-    # a chunk is about 0.5 s of work: measured 1.0 s from SIGINT to the child's exit
+    # a chunk of a pendulum is 2e5 steps, 0.1 s here: measured 1.0 s from SIGINT to exit
     assert waited < 5.0
     assert int(n_steps) > 10_000 and int(rows) == int(n_steps) // 1000 + 1
     assert float(t_last) == pytest.approx(int(n_steps) * 0.01, rel=1e-12)
@@ -113,3 +113,26 @@ def test_a_short_run_is_one_call(monkeypatch):
         warnings.simplefilter("error")
         integrator.integrate([0.3], [0.0], h=0.1, n_steps=chunks.FIRST_CHUNK)
     assert calls == [chunks.FIRST_CHUNK]
+
+
+def test_chunks_do_not_depend_on_the_clock():
+    # the same run twice, whatever the machine's load: bitwise the same (chunk sizes
+    # came from a clock once, and a chaotic orbit's crossings changed from call to call)
+    integrator = gvi.Integrator(PENDULUM, gvi.Galerkin(2))
+    runs = [
+        integrator.integrate(
+            [0.3], [2.5], h=0.1, n_steps=3 * chunks.chunk_steps(1, 1), save_every=997
+        )
+        for _ in range(2)
+    ]
+    np.testing.assert_array_equal(runs[0].q, runs[1].q)
+    assert chunks.chunk_steps(1, 1) == 200_000 and chunks.chunk_steps(100, 7) == 2002
+
+
+def test_a_terminal_event_stops_the_computation(small_chunks):
+    integrator = gvi.Integrator(PENDULUM, gvi.Galerkin(2))
+    crossing = gvi.Event(q, terminal=True, direction=-1)
+    traj = integrator.integrate([1.5], [0.0], h=0.01, n_steps=100_000, events=crossing)
+    # the pendulum passes the vertical at t = 1.83: the run stopped in the chunk after it
+    assert traj.status == gvi.RunStatus.TERMINATED and traj.t[-1] == pytest.approx(1.83, abs=0.01)
+    assert traj.n_steps < 300
