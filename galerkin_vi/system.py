@@ -395,6 +395,13 @@ class LagrangianSystem:
                 values[index[key]] = x
         return values
 
+    def __getstate__(self) -> dict:
+        # the NumPy evaluators hold lambdified functions, which do not pickle: a copy
+        # sent to another process (an ensemble's worker) builds them again on first use
+        state = self.__dict__.copy()
+        state.pop("_evaluators", None)
+        return state
+
     # ----------------------------------------------------------- evaluation
     @cached_property
     def _evaluators(self) -> dict[str, FlatEvaluator]:

@@ -71,8 +71,11 @@ def test_progress_bar(small_chunks, capsys):
 
 CHILD = textwrap.dedent(
     """
-    import time, warnings
+    import signal, time, warnings
     import sympy as sp, galerkin_vi as gvi
+    # a terminal's Python: SIGINT raises KeyboardInterrupt (under pytest-xdist the child
+    # inherits an ignored SIGINT, and Python then installs no handler)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     q, v = sp.symbols("q v")
     integ = gvi.Integrator(gvi.LagrangianSystem(v**2 / 2 + sp.cos(q), [q], [v]), gvi.Galerkin(2))
     integ.integrate([1.0], [0.0], h=0.1, n_steps=10)

@@ -46,6 +46,7 @@ def test_a_process_pool_gives_the_same_members(double_pendulum):
     problem, integrator = double_pendulum
     q0s, v0s = _members(problem, 4)
     threads = integrator.integrate_many(q0s, v0s, h=0.01, n_steps=100)
+    threads.trajectories[0].velocities()  # NumPy evaluators built: they must not travel
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=2, mp_context=context) as pool:
         processes = integrator.integrate_many(q0s, v0s, h=0.01, n_steps=100, executor=pool)
