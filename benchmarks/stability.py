@@ -130,9 +130,10 @@ FAMILIES = ("lobatto", "gauss")
 # split into pairs about 10^(-DPS/2) apart)
 _REAL_TOL = mpmath.mpf(10) ** (-DPS // 3)
 _FAILURE_KINDS = {
-    "Newton iteration did not converge": "newton",
-    "non-finite values": "non-finite",
-    "stage Jacobian is singular": "singular",
+    gvi.RunStatus.NO_CONVERGENCE: "newton",
+    gvi.RunStatus.NON_FINITE: "non-finite",
+    gvi.RunStatus.SINGULAR_JACOBIAN: "singular",
+    gvi.RunStatus.UNSTABLE: "unstable",
 }
 
 
@@ -401,7 +402,7 @@ class Run:
 
     x: float
     outcome: str  # "bounded", "warning" (InstabilityWarning), "error" (ConvergenceError)
-    failure: str | None  # for errors: "newton", "non-finite" or "singular"
+    failure: str | None  # for errors: "newton", "non-finite", "singular" or "unstable"
     growth: float  # log10 of max |q| over the run (or its partial trajectory) / max |q0|
     steps: int  # steps completed (for errors: the index of the failing step)
     finite: bool  # every returned (or partial) state is finite
@@ -435,7 +436,7 @@ def classify(
         except gvi.ConvergenceError as err:
             traj = err.partial
             outcome = "error"
-            failure = next((v for k, v in _FAILURE_KINDS.items() if k in str(err)), "other")
+            failure = _FAILURE_KINDS.get(traj.status, "other")
             steps = err.step
     finite = bool(np.all(np.isfinite(traj.q)) and np.all(np.isfinite(traj.p)))
     scale = float(np.max(np.abs(q0))) or 1.0
