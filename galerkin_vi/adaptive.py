@@ -266,6 +266,8 @@ class AdaptiveIntegrator:
             q_reduced=q_reduced,
             tau=run.t.copy(),
             clock_momentum=run.p[:, n].copy(),
+            status=run.status,
+            message=run.message,
         )
 
     # ------------------------------------------------------------------ runs
@@ -349,20 +351,25 @@ class AdaptiveIntegrator:
             physical = self._physical_failure(exc, prm)
             if on_failure == "raise" or physical.partial is None:
                 raise physical from exc
-            partial = replace(physical.partial, status=exc.partial.status, message=str(physical))
             return failed_run(
-                partial, on_failure, step=physical.step, t=physical.t, residual=physical.residual
-            )
+                physical.partial, on_failure, step=physical.step, t=physical.t,
+                residual=physical.residual,
+            )  # fmt: skip
         return self._trajectory(run, prm)
 
     def _physical_failure(self, exc: ConvergenceError, prm: NDArray) -> ConvergenceError:
         """``exc`` of the extended system, its partial run in physical time and coordinates."""
         partial = None if exc.partial is None else self._trajectory(exc.partial, prm)
         t = exc.t if partial is None else float(partial.t[-1])
+        cause = exc if partial is None else exc.partial.message
+        message = (
+            f"in fictitious time tau: {cause} The failing step starts at physical time "
+            f"t = {t:.6g}. A smaller h, or a g that is smaller where the motion is fast, may help."
+        )
+        if partial is not None:
+            partial = replace(partial, message=message)
         return ConvergenceError(
-            f"in fictitious time tau: {exc} The failing step starts at physical time "
-            f"t = {t:.6g}; .partial holds the states before it in physical time. A smaller "
-            "h, or a g that is smaller where the motion is fast, may help.",
+            f"{message} .partial holds the states before it in physical time.",
             step=exc.step, t=t, residual=exc.residual, partial=partial,
         )  # fmt: skip
 
@@ -386,9 +393,11 @@ class AdaptiveIntegrator:
                 if exc.partial is not None:
                     rows.extend(exc.partial, len(exc.partial) - 1)
                 exc.step += before
-                status = exc.partial.status if exc.partial is not None else RunStatus.NO_CONVERGENCE
+                failed = exc.partial
                 exc.partial = replace(
-                    rows.trajectory(self.transform.extended, save_every), status=status
+                    rows.trajectory(self.transform.extended, save_every),
+                    status=failed.status if failed is not None else RunStatus.NO_CONVERGENCE,
+                    message=failed.message if failed is not None else str(exc),
                 )
                 raise
             rows.work += run.total_newton_iterations

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numbers
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import sympy as sp
@@ -80,12 +80,17 @@ class Event:
 
 @dataclass
 class EventRecord:
-    """The occurrences of one event: times and states, in the run's order."""
+    """The occurrences of one event: times and states, in the run's order, and the
+    interval k (the event lies in (t_k, t_k+1]) of each."""
 
-    t: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    q: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
-    v: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
-    interval: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    t: NDArray[np.float64]
+    q: NDArray[np.float64]
+    v: NDArray[np.float64]
+    interval: NDArray[np.int64]
+
+    @classmethod
+    def empty(cls, n: int) -> EventRecord:
+        return cls(np.zeros(0), np.zeros((0, n)), np.zeros((0, n)), np.zeros(0, dtype=np.int64))
 
 
 def as_events(events: object) -> list[Event]:
@@ -180,7 +185,7 @@ def _roots(fun: Callable, a: NDArray, b: NDArray, fa: NDArray, fb: NDArray) -> N
         # a point outside or on the bracket's ends (round-off): bisect
         bad = ~((x > np.minimum(aa, bb)) & (x < np.maximum(aa, bb)))
         x[bad] = 0.5 * (aa[bad] + bb[bad])
-        fx = fun(x, idx)
+        fx = fun(x)
         hit = fx == 0.0
         root[idx[hit]] = x[hit]
         same_a = (np.sign(fx) == np.sign(ffa)) & ~hit
@@ -250,10 +255,10 @@ def locate_events(
         values = g(t, q, v, prm)
         k = _crossings(values, float(event.direction))
         if k.size == 0:
-            records.append(EventRecord(q=np.zeros((0, q.shape[1])), v=np.zeros((0, q.shape[1]))))
+            records.append(EventRecord.empty(q.shape[1]))
             continue
 
-        def on_dense(x, idx, k=k, g=g):
+        def on_dense(x, g=g):
             qx, vx = sol.state(x)
             return g(x, qx, vx, prm)
 
@@ -262,7 +267,7 @@ def locate_events(
         if event.exact and exact_step is not None:
             for i, (kk, r) in enumerate(zip(k, roots, strict=True)):
                 roots[i], qe[i], ve[i] = _exact_time(g, prm, exact_step, int(kk), t, r)
-        records.append(EventRecord(t=roots, q=qe, v=ve, interval=k))
+        records.append(EventRecord(roots, qe, ve, k))
     return records
 
 
@@ -290,16 +295,17 @@ def _exact_time(g, prm, exact_step, k, t, guess):
     return tk + x1, q1, v1
 
 
-def apply_events(traj, events: Sequence[Event], records: Sequence[EventRecord], system):
+def apply_events(traj, events: Sequence[Event], records: Sequence[EventRecord]):
     """``traj`` with ``t_events`` ... ``p_events`` set, cut at the first terminal event.
 
     A terminal event with count c stops the run at its c-th occurrence: the
     states after it are dropped, the event's state becomes the last row, and
     ``status`` is 1. Occurrences of other events after it are dropped too.
     """
+    system = traj.system
     n = traj.q.shape[1]
     if not records:
-        records = [EventRecord(q=np.zeros((0, n)), v=np.zeros((0, n))) for _ in events]
+        records = [EventRecord.empty(n) for _ in events]
     forward = len(traj.t) < 2 or traj.t[-1] >= traj.t[0]
     stop, which = None, None
     for j, (event, rec) in enumerate(zip(events, records, strict=True)):

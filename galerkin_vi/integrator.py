@@ -419,10 +419,12 @@ class Integrator:
             ``Trajectory.sol`` keeps every step. Needs ``save_every=1``.
         progress : bool or None
             A progress bar (tqdm): always, never, or (None, default) for runs
-            predicted to take over 2 s when stderr is a terminal. Long runs
-            go in chunks of about 0.5 s (:mod:`galerkin_vi.chunks`); Ctrl-C
-            between them ends the run with the states computed so far,
-            ``status`` :attr:`RunStatus.INTERRUPTED` and a warning.
+            predicted to take over 2 s when stderr is a terminal. Runs over
+            5000 steps go in chunks whose size depends on the system only
+            (:mod:`galerkin_vi.chunks`); Ctrl-C between them ends the run
+            with the states computed so far (their dense output and events
+            included), ``status`` :attr:`RunStatus.INTERRUPTED` and a warning,
+            whatever ``on_failure`` says.
 
         Returns
         -------
@@ -476,17 +478,14 @@ class Integrator:
         traj, status, done, increment, interrupted = run_in_chunks(
             run, self._run, restart, progress, terminal_stop(event_list, event_functions, prm)
         )
+        failure = None
         if interrupted:
-            t_stop = float(traj.t[-1])
             message = (
-                f"{RunStatus.INTERRUPTED.cause} after step {done} (t = {t_stop:.6g}); the "
+                f"{RunStatus.INTERRUPTED.cause} after step {done} (t = {traj.t[-1]:.6g}); the "
                 "states computed so far are kept"
             )
             traj = replace(traj, status=RunStatus.INTERRUPTED, message=message)
-            warnings.warn(message, RunFailureWarning, stacklevel=2)
-            return traj
-        failure = None
-        if status != 0:
+        elif status != 0:
             code = loop_status(status)
             t_fail = t0 + done * h
             # the explicit loop has no iteration, hence no increment to report
@@ -504,6 +503,10 @@ class Integrator:
             traj = self._with_events(traj, event_list, event_functions, prm)
         if times is not None and traj.sol is not None:
             traj = _at_times(traj, times)
+        if traj.status == RunStatus.INTERRUPTED:
+            # asked for by the user: returned in either failure mode
+            warnings.warn(traj.message, RunFailureWarning, stacklevel=2)
+            return traj
         if not traj.success:
             step = int(round((traj.t[-1] - t0) / h))
             return failed_run(traj, on_failure, step=step, t=float(traj.t[-1]), residual=increment)
@@ -550,7 +553,8 @@ class Integrator:
             if inner is not None:
                 # the last trusted state lies between saved rows end - 1 and end
                 kept = slice(0, end)
-                head = replace(traj, t=traj.t[kept], q=traj.q[kept], p=traj.p[kept])
+                # q_reduced dropped: the row appended below has none (diagnostics reduce)
+                head = replace(traj, t=traj.t[kept], q=traj.q[kept], p=traj.p[kept], q_reduced=None)
                 if inner > 1:
                     head = replace(
                         head,
@@ -603,7 +607,7 @@ class Integrator:
     def _with_events(self, traj, event_list, functions, prm) -> Trajectory:
         """``traj`` with its events located, cut at the first terminal one."""
         if traj.sol is None:  # fewer than 2 states: no interval to search
-            return apply_events(traj, event_list, [], self.system)
+            return apply_events(traj, event_list, [])
 
         def method_step(k: int, tau: float):
             # one step of the method from node k, of length tau (exact event times)
@@ -613,7 +617,7 @@ class Integrator:
 
         prm_map = dict(zip(self.system.params, prm, strict=True))
         records = locate_events(event_list, functions, traj.sol, prm, method_step)
-        return apply_events(traj, event_list, records, self.system)
+        return apply_events(traj, event_list, records)
 
     def _initial_state(self, q0, v0, p0, t0, prm, project):
         """(q0, p0, v0) from the user's data: Legendre transform, constraints checked."""

@@ -174,6 +174,9 @@ def test_a_failed_run_keeps_its_states_in_physical_time(kepler, adaptive):
         assert partial.q.shape == (2, 2) and partial.tau[-1] == 1.5
         assert error.t == partial.t[-1] > 0.0  # physical time of the last good state
         np.testing.assert_array_equal(partial.q[0], kepler.q0)
+        # the partial run says it failed, and where, in physical time
+        assert not partial.success and partial.status < 0
+        assert "physical time" in partial.message and ".partial" not in partial.message
 
 
 def test_landing_on_t_final_computes_few_steps_past_it(kepler, adaptive):

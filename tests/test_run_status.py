@@ -97,6 +97,7 @@ def test_a_failed_adaptive_run_returns_its_physical_states():
         traj = adaptive.integrate(kepler.q0, kepler.v0, h=1.5, n_steps=400)
     assert isinstance(traj, gvi.AdaptiveTrajectory) and not traj.success
     assert traj.q.shape == (2, 2) and traj.tau[-1] == 1.5 and traj.t[-1] > 0.0
+    assert traj.status < 0 and ".partial" not in traj.message
 
 
 def test_assert_conserved_fails_a_failed_run_unless_allowed():
