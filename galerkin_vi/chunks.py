@@ -35,6 +35,7 @@ __all__ = [
     "PROGRESS_AFTER",
     "chunk_steps",
     "run_in_chunks",
+    "single_call",
 ]
 
 #: steps of the first call; shorter runs are one call
@@ -50,6 +51,11 @@ PROGRESS_AFTER = 2.0
 def chunk_steps(n: int, save_every: int) -> int:
     """Steps per chunk after the first: ``CHUNK_WORK / n``, whole saved intervals."""
     return _multiple(max(MIN_CHUNK, CHUNK_WORK // max(n, 1)), save_every)
+
+
+def single_call(n_steps: int, save_every: int) -> bool:
+    """Whether a run of ``n_steps`` is one compiled call (not chunked)."""
+    return n_steps <= _multiple(FIRST_CHUNK, save_every)
 
 
 def run_in_chunks(

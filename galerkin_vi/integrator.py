@@ -290,6 +290,13 @@ class Integrator:
             raise ValueError(f"h must be finite and nonzero, got {h}")
         return h
 
+    def _run_plan(self, h, n_steps, t_span, t0, save_every) -> tuple[float, int, float, int]:
+        """Checked (h, n_steps, t0, save_every) of a run, ``t_span`` resolved."""
+        h = self._step_size(h)
+        h, n_steps, t0 = _span_steps(h, n_steps, t_span, t0)
+        n_steps, save_every, t0 = _run_lengths(n_steps, save_every, t0)
+        return h, n_steps, t0, save_every
+
     @cached_property
     def _point_legendre(self):
         """:class:`PointLegendre` of the compiled Hessian, or None where it does not apply.
@@ -451,9 +458,7 @@ class Integrator:
         system = self.system
         check_failure_mode(on_failure)
         q0 = self._state("q0", q0)
-        h = self._step_size(h)
-        h, n_steps, t0 = _span_steps(h, n_steps, t_span, t0)
-        n_steps, save_every, t0 = _run_lengths(n_steps, save_every, t0)
+        h, n_steps, t0, save_every = self._run_plan(h, n_steps, t_span, t0, save_every)
         if not isinstance(dense_output, bool):
             raise TypeError(f"dense_output must be True or False, got {dense_output!r}")
         event_list = as_events(events)
@@ -644,36 +649,47 @@ class Integrator:
             return solver.integrate(
                 system, tb, *run, self.tol, self.maxiter, *out.arrays, *counters
             )
-        from . import loops  # numba: imported on the first compiled run
         from .loops.readiness import ensure_loops
 
         ensure_loops()
+        if path == "explicit":
+            return run_explicit(system, self._summary, self._loop_arguments, run, out.arrays)
+        loop, before, after = self._loop_call()
+        if path == "linear":
+            status, done, saved = loop(*before, *run, *after, *out.arrays)
+            out.iterations[: -(-done // run[6])] = 1
+            out.iteration_total[0] = done
+            return status, done, saved, 0.0, np.nan
+        return loop(*before, *run, *after, *out.arrays, *counters)
+
+    def _loop_call(self) -> tuple:
+        """(loop, before, after) of an implicit compiled path: the loop is called as
+        ``loop(*before, q0, p0, v0, t0, h, n_steps, save_every, prm, *after, t, q, p,
+        turns[, iterations, iteration_total])``.
+
+        ``before`` may hold work space of the loop (the stage form's diagonal mass):
+        a new one per call, so that threads running the loop at once do not share it.
+        """
+        from . import loops  # numba: imported on the first compiled run
+
+        path, system, tb = self.kernel_path, self.system, self.method.tables
         model = self._loop_arguments
         newton = (self.tol, self.maxiter)
-        if path == "explicit":
-            return run_explicit(system, self._summary, model, run, out.arrays)
         if path == "separable":
             st = separable_tables(self.method)
             # a diagonal M is a compiled variant of its own (None: a full M)
             diagonal = np.zeros(system.n) if self._summary.diagonal_mass else None
-            return loops.stage_form_loop(
-                *model, diagonal, *run, tb.b, tb.c, *st.loop_arguments, *newton,
-                self.uses_constant_mass, *out.arrays, *counters,
-            )  # fmt: skip
+            after = (tb.b, tb.c, *st.loop_arguments, *newton, self.uses_constant_mass)
+            return loops.stage_form_loop, (*model, diagonal), after
         method = (tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation)
         if path == "linear":
-            status, done, saved = loops.linear_loop(*model, *run, *method, *out.arrays)
-            out.iterations[: -(-done // run[6])] = 1
-            out.iteration_total[0] = done
-            return status, done, saved, 0.0, np.nan
+            return loops.linear_loop, model, method
         if path == "constrained":
-            return loops.constrained_loop(
-                *model, system.m, *run, *method, *newton, *out.arrays, *counters
-            )
+            return loops.constrained_loop, (*model, system.m), (*method, *newton)
         # a switch (loops.traits): None compiles the L_qv and f_v terms out
         spec = self._summary
         couplings = (spec.has_Lqv, spec.has_fv) if spec.has_Lqv or spec.has_fv else None
-        return loops.general_loop(*model, couplings, *run, *method, *newton, *out.arrays, *counters)
+        return loops.general_loop, (*model, couplings), (*method, *newton)
 
     def stream(
         self,

@@ -24,7 +24,7 @@ import threading
 import numpy as np
 from numpy.typing import NDArray
 
-from .system import is_regular
+from .system import are_regular, is_regular
 
 __all__ = ["PointLegendre"]
 
@@ -108,6 +108,28 @@ class PointLegendre:
         with self._lock:
             p, m = self.at(t, q, v, prm)
             return p if self._regular(m) else None
+
+    def many(self, fn, t0: float, q, v, prms) -> tuple[NDArray, NDArray, NDArray[np.bool_]]:
+        r"""(L_v, L_vv, regular) at ``(t0, q[i], v[i])`` with parameters ``prms[i]``, stacked.
+
+        One compiled call for all rows (:func:`galerkin_vi.loops.members.legendre_members`,
+        through ``fn``, the loops' tuple of point-function addresses), the same
+        values as :meth:`at` row by row; ``regular[i]``: :math:`L_{vv}` finite and
+        regular (:func:`~galerkin_vi.system.are_regular`).
+        """
+        from .loops.members import legendre_members
+
+        q, v, prms = _vector(q), _vector(v), _vector(prms)
+        m, n = q.shape
+        size = n * n if self._rows is None else len(self._rows)
+        Lv, entries = np.zeros((m, n)), np.zeros((m, size))
+        legendre_members(fn, float(t0), q, v, prms, Lv, entries)
+        if self._rows is None:
+            Lvv = entries.reshape(m, n, n)
+        else:
+            Lvv = np.zeros((m, n, n))
+            Lvv[:, self._rows, self._columns] = entries
+        return Lv, Lvv, are_regular(Lvv)
 
     def velocities_of_quadratic(self, t: float, q, p, prm) -> NDArray[np.float64] | None:
         r"""Velocities of momenta ``p`` when L is quadratic in v: one solve,

@@ -33,7 +33,7 @@ from .symbolic import (
     without_point_masses,
 )
 
-__all__ = ["LagrangianSystem", "MomentumMap", "is_regular"]
+__all__ = ["LagrangianSystem", "MomentumMap", "are_regular", "is_regular"]
 
 _LEGENDRE_MAXITER = 50
 
@@ -767,6 +767,24 @@ def _check_printable(expr: sp.Expr, name: str) -> None:
         raise ValueError(
             f"{name} uses functions the code generators cannot compile: {', '.join(unsupported)}"
         )
+
+
+def are_regular(stack: NDArray) -> NDArray[np.bool_]:
+    """:func:`is_regular` of each matrix of a stack (k, n, n), and False where not finite.
+
+    One batched SVD up to 64 rows (the same criterion, the same LAPACK routine).
+    """
+    stack = np.asarray(stack, dtype=float)
+    finite = np.isfinite(stack).all(axis=(1, 2))
+    regular = np.zeros(len(stack), dtype=bool)
+    if stack.shape[1] <= 64:
+        if finite.any():
+            s = np.linalg.svd(stack[finite], compute_uv=False)
+            regular[finite] = s[:, -1] > 1e-12 * np.maximum(s[:, 0], 1.0)
+        return regular
+    for k in np.flatnonzero(finite):
+        regular[k] = is_regular(stack[k])
+    return regular
 
 
 def is_regular(m: NDArray) -> bool:

@@ -27,7 +27,8 @@ def _runs():
     that the loops take: stage form (diagonal or full mass matrix) x (dense or banded),
     general loop (dense or banded) x (with or without L_qv / f_v couplings), linear
     loop (dense or banded), constrained loop, explicit loop (diagonal or full mass
-    matrix) x (angles or none) x (autonomous or time-dependent).
+    matrix) x (angles or none) x (autonomous or time-dependent). Each implicit variant
+    is also run as a two-member ensemble (:mod:`galerkin_vi.loops.members`).
     """
     import sympy as sp
 
@@ -138,6 +139,9 @@ def warm_up(group: int = 0, of: int = 1, verbose: bool = False) -> dict[str, flo
         integrator = Integrator(system, method, specialize=specialize)
         start = time.perf_counter()
         integrator.integrate(q0, v0=v0, h=0.01, n_steps=2, on_failure="raise")
+        if integrator.kernel_path != "explicit":
+            # the member loop of ensembles (and their Legendre transforms) for this loop
+            integrator.integrate_many([q0, q0], [v0, v0], h=0.01, n_steps=2, workers=1)
         seconds[label] = time.perf_counter() - start
         if verbose:
             print(f"  {seconds[label]:5.1f} s  {label}", flush=True)

@@ -1,0 +1,118 @@
+"""Many members of an ensemble in one compiled call.
+
+:meth:`galerkin_vi.Integrator.integrate_many` runs members (initial states,
+parameter sets) of one system, method and step size. Called one by one from
+Python, each member paid about 0.2 ms of Python around its compiled loop;
+here one call runs a block of members, each through the very loop a single
+run calls (same compiled function, same arguments), so every member's result
+is bitwise the one-by-one run's. Blocks run in threads at once: the drivers
+release the GIL.
+
+Which loop is called is a switch (:mod:`.traits`): exactly one of ``general``,
+``stage_form``, ``linear`` and ``constrained`` is not ``None``, and numba
+compiles only that branch.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._jit import driver, kernel
+from .constrained import constrained_loop
+from .general import general_loop
+from .linear import linear_loop
+from .point import point_hessian
+from .stage_form import stage_form_loop
+
+__all__ = ["legendre_members", "linear_counted", "members_loop"]
+
+
+@kernel
+def linear_counted(
+    fn, traits, pattern, periodic, q0, p0, v0, t0, h, n_steps, save_every, prm, b, c, d, Phi,
+    D, E, t_out, q_out, p_out, turns_out, iterations_out, iteration_total,
+):  # fmt: skip
+    """:func:`.linear_loop` with the other loops' arguments and results: one factorisation
+    and one solve per step count as one iteration per step (as a single run counts them)."""
+    status, done, saved = linear_loop(
+        fn, traits, pattern, periodic, q0, p0, v0, t0, h, n_steps, save_every, prm, b, c, d,
+        Phi, D, E, t_out, q_out, p_out, turns_out,
+    )  # fmt: skip
+    iterations_out[: -(-done // save_every)] = 1
+    iteration_total[0] = done
+    return status, done, saved, 0.0, np.nan
+
+
+@driver
+def members_loop(
+    general,
+    stage_form,
+    linear,
+    constrained,
+    before,
+    q0s,
+    p0s,
+    v0s,
+    t0,
+    h,
+    n_steps,
+    save_every,
+    prms,
+    after,
+    t_out,
+    q_out,
+    p_out,
+    turns_out,
+    iterations_out,
+    iteration_totals,
+    results,
+):
+    """Run member ``i`` from ``(q0s[i], p0s[i], v0s[i])`` with parameters ``prms[i]``.
+
+    The loop is called as ``loop(*before, q0, p0, v0, t0, h, n_steps, save_every,
+    prm, *after, t, q, p, turns, iterations, iteration_total)`` on member ``i``'s
+    rows of the outputs (``iteration_totals`` has shape (m, 1)). ``results[i]``
+    receives (status, steps completed, rows saved, max residual, failing
+    increment) as the loop returns them; a failed member does not stop the others.
+    """
+    # the switches leave one of these assignments (numba prunes the others)
+    if general is not None:
+        loop = general_loop
+    if stage_form is not None:
+        loop = stage_form_loop
+    if linear is not None:
+        loop = linear_counted
+    if constrained is not None:
+        loop = constrained_loop
+    for i in range(q0s.shape[0]):
+        status, done, saved, worst, increment = loop(
+            *before, q0s[i], p0s[i], v0s[i], t0, h, n_steps, save_every, prms[i], *after,
+            t_out[i], q_out[i], p_out[i], turns_out[i], iterations_out[i], iteration_totals[i],
+        )  # fmt: skip
+        results[i, 0] = status
+        results[i, 1] = done
+        results[i, 2] = saved
+        results[i, 3] = worst
+        results[i, 4] = increment
+    return 0
+
+
+@driver
+def legendre_members(fn, t0, q0s, v0s, prms, Lv_out, Lvv_out):
+    r""":math:`L_v` and the stored :math:`L_{vv}` entries at ``(t0, q0s[i], v0s[i])``.
+
+    Every member's momenta :math:`p_0 = L_v(t_0, q_0, v_0)` in one call, through
+    the same compiled point function a single run's Legendre transform calls
+    (:class:`galerkin_vi.point_legendre.PointLegendre`), so the values are the
+    same. ``Lv_out`` and ``Lvv_out`` must be zero on entry: entries that are
+    identically zero are never written.
+    """
+    n = q0s.shape[1]
+    size = Lvv_out.shape[1]
+    Lq = np.zeros(n)
+    Lqq = np.zeros(size)
+    Lqv = np.zeros(size)
+    Fv = np.zeros(size)
+    for i in range(q0s.shape[0]):
+        point_hessian(fn, t0, q0s[i], v0s[i], prms[i], Lq, Lv_out[i], Lqq, Lqv, Lvv_out[i], Fv)
+    return 0
