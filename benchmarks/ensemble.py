@@ -9,9 +9,9 @@ nothing compiled on the workers. Measured here, in one run:
 - the overhead per member: ``integrate_many`` of the same members with zero
   steps (everything a member costs but its steps: start checks, Legendre
   transforms, allocation, loop entry, end checks). The cost per step of one long
-  run is printed beside it, not subtracted: a long chaotic run meets harder
-  states than 10^3 steps from the members' starts (1.65 against 1.31 us per
-  step when measured), so time per member minus steps x that cost is negative;
+  run is printed beside it, not subtracted: on this shared machine it moved
+  between 1.09 and 1.65 us from one run to the next, more than the overhead,
+  and a short run's steps include its cold start (the first Jacobian);
 - building the members' ``Trajectory`` objects (``Ensemble.trajectories``,
   done on first access only);
 - with ``--dask``: the same members on a ``LocalCluster`` of 2 worker

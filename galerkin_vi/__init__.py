@@ -19,12 +19,14 @@ from .quadrature import QuadratureRule, gauss_legendre, gauss_lobatto
 from .status import RunStatus
 from .system import LagrangianSystem
 from .trajectory import Trajectory
+from .unilateral import Contact
 from .verification import OrderResult, measure_order
 
 __all__ = [
     "AdaptiveIntegrator",
     "AdaptiveTrajectory",
     "ConditioningWarning",
+    "Contact",
     "ConvergenceError",
     "DegenerateLagrangianError",
     "Event",

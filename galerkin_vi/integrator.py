@@ -454,7 +454,28 @@ class Integrator:
             those over the first tenth by more than ``INSTABILITY_GROWTH``
             (``1e6``; at least 10 saved states, autonomous unforced systems):
             the exponential growth of a step size past the stability limit.
+
+        Notes
+        -----
+        A system with ``contacts`` runs through :mod:`galerkin_vi.contact`
+        (impacts located and applied; ``Trajectory.impacts``).
         """
+        run = dict(
+            h=h, n_steps=n_steps, t0=t0, params=params, save_every=save_every, project=project,
+            on_failure=on_failure, dense_output=dense_output, t_span=t_span, events=events,
+            progress=progress, t_eval=t_eval,
+        )  # fmt: skip
+        if self.system.contacts:
+            from .contact.event_driven import integrate_with_contacts
+
+            return integrate_with_contacts(self, q0, v0, p0, **run)
+        return self._integrate_smooth(q0, v0, p0, **run)
+
+    def _integrate_smooth(
+        self, q0, v0, p0, *, h, n_steps, t0, params, save_every, project, on_failure,
+        dense_output, t_span, events, progress, t_eval,
+    ) -> Trajectory:  # fmt: skip
+        """:meth:`integrate` without contacts: the loops, events, dense output."""
         system = self.system
         check_failure_mode(on_failure)
         q0 = self._state("q0", q0)
@@ -510,11 +531,13 @@ class Integrator:
             traj = _at_times(traj, times)
         if traj.status == RunStatus.INTERRUPTED:
             # asked for by the user: returned in either failure mode
-            warnings.warn(traj.message, RunFailureWarning, stacklevel=2)
+            warnings.warn(traj.message, RunFailureWarning, stacklevel=3)
             return traj
         if not traj.success:
             step = int(round((traj.t[-1] - t0) / h))
-            return failed_run(traj, on_failure, step=step, t=float(traj.t[-1]), residual=increment)
+            return failed_run(
+                traj, on_failure, step=step, t=float(traj.t[-1]), residual=increment, stacklevel=4
+            )
         _warn_if_unstable(traj, h)
         return traj
 
@@ -831,6 +854,12 @@ class Integrator:
     ):
         """:meth:`integrate` for many initial states and/or parameter sets at once.
 
+        Runs of one compiled call (at most
+        :data:`~galerkin_vi.chunks.FIRST_CHUNK` steps) without events, dense
+        output or ``t_eval`` go through the compiled member loop
+        (:mod:`galerkin_vi.ensemble`): a few microseconds per member besides
+        its steps. Others are one :meth:`integrate` call per member.
+
         Parameters
         ----------
         q0s : array_like, shape (m, n)
@@ -841,13 +870,14 @@ class Integrator:
             Parameter values: each a number or an array of m values (a sweep),
             or one mapping per member. Never compiles anything.
         executor : concurrent.futures.Executor, optional
-            Where the members run. Default: a thread pool of ``workers``
-            threads (default: all cores), in this process; the compiled loops
-            release the GIL. A process pool or Dask's ``Client.get_executor()``
-            receives (system, method, start, parameters) per member and builds
-            the integrator once per worker process from the cache.
+            Where the members run. Default: threads (``workers``, default all
+            cores) in this process; the compiled loops release the GIL. A
+            process pool or Dask's ``Client.get_executor()`` receives blocks of
+            members (system, method, starts, parameters); each worker process
+            builds the integrator once from the cache and returns arrays.
         workers : int, optional
-            Threads of the default executor.
+            Threads of the default executor (default: all cores); with
+            ``executor``, the members are sent in ``4 * workers`` blocks.
         **run
             As for :meth:`integrate` (``h``, ``n_steps`` or ``t_span``,
             ``save_every``, ``events``, ``on_failure``, ...).
@@ -867,7 +897,11 @@ class Integrator:
         self, q0: ArrayLike, p0: ArrayLike, h: float, t0: float = 0.0, params=None
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """One step of the position–momentum map, ``(q_k, p_k) -> (q_{k+1}, p_{k+1})``."""
-        traj = self.integrate(q0, p0=p0, h=h, n_steps=1, t0=t0, params=params, on_failure="raise")
+        traj = self._integrate_smooth(
+            q0, None, p0, h=h, n_steps=1, t0=t0, params=params, save_every=1, project=False,
+            on_failure="raise", dense_output=False, t_span=None, events=None, progress=None,
+            t_eval=None,
+        )  # fmt: skip
         return traj.q[-1].copy(), traj.p[-1].copy()
 
     def step_del(
@@ -939,7 +973,9 @@ def check_failure_mode(on_failure: object) -> None:
         raise ValueError(f"on_failure must be one of {FAILURE_MODES}, got {on_failure!r}")
 
 
-def failed_run(traj: Trajectory, on_failure: str, *, step: int, t: float, residual: float):
+def failed_run(
+    traj: Trajectory, on_failure: str, *, step: int, t: float, residual: float, stacklevel: int = 3
+):
     """A failed run's trajectory, returned with a warning or raised as ``.partial``.
 
     ``traj`` carries the failure's ``status`` and ``message`` already.
@@ -952,8 +988,8 @@ def failed_run(traj: Trajectory, on_failure: str, *, step: int, t: float, residu
             residual=float(residual),
             partial=traj,
         )
-    # stacklevel 3: the caller of integrate(), not integrate() itself
-    warnings.warn(traj.message, RunFailureWarning, stacklevel=3)
+    # stacklevel: the user's call (of integrate(), next() of a stream), not the library
+    warnings.warn(traj.message, RunFailureWarning, stacklevel=stacklevel)
     return traj
 
 
@@ -1124,7 +1160,7 @@ def _warn_if_unstable(traj: Trajectory, h: float) -> None:
             f"h = {h:.3g} is probably past the method's stability limit (the discrete "
             "solution grows exponentially); use a smaller h",
             InstabilityWarning,
-            stacklevel=3,
+            stacklevel=4,
         )
 
 

@@ -23,6 +23,7 @@ class RunStatus(IntEnum):
     NON_FINITE = -3
     UNSTABLE = -4
     INTERRUPTED = -5
+    CONTACT_PERSISTS = -6
 
     @property
     def cause(self) -> str:
@@ -39,6 +40,8 @@ _CAUSES = {
     RunStatus.UNSTABLE: "the solution grew explosively: the step size is past the "
     "method's stability limit",
     RunStatus.INTERRUPTED: "the run was interrupted (KeyboardInterrupt)",
+    RunStatus.CONTACT_PERSISTS: "a contact persists or its impacts accumulate (a body "
+    "coming to rest or sliding on it), which isolated impacts cannot continue",
 }
 
 # the compiled loops and the NumPy backends return 0 for success and these codes

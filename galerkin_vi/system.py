@@ -22,6 +22,7 @@ from .mechanics import (
     uses_dynamicsymbols,
 )
 from .numeric import FlatEvaluator
+from .unilateral import Contact, check_contacts
 from .symbolic import (
     ConstraintPieces,
     PointwisePieces,
@@ -153,6 +154,7 @@ class LagrangianSystem:
         params: Mapping[sp.Symbol, float] | None = None,
         constraints: Sequence[sp.Expr] | None = None,
         forces: Sequence[sp.Expr] | None = None,
+        contacts: Sequence[Contact] | None = None,
     ) -> None:
         #: the map from a mechanics model's dynamicsymbols to the plain symbols here
         self.mechanics_symbols: MechanicsSymbols | None = None
@@ -169,6 +171,7 @@ class LagrangianSystem:
             L, q, v, t = model.L, model.q, model.v, model.t
             constraints, forces = model.constraints, model.forces
             self.mechanics_symbols = model.symbols
+            contacts = _contacts_in_plain_symbols(contacts, model.symbols)
         elif v is None:
             raise ValueError(
                 "v (the velocity symbols, one per coordinate) is required when q are plain "
@@ -219,6 +222,9 @@ class LagrangianSystem:
                     "never satisfied (inconsistent constraints)"
                 )
 
+        #: unilateral contacts (:class:`~galerkin_vi.Contact`); they do not enter the
+        #: point functions: :mod:`galerkin_vi.contact` integrates between and through impacts
+        self.contacts = check_contacts(contacts, q_list, v_list, t, list(params))
         self.L = L
         self.q = tuple(q_list)
         self.v = tuple(v_list)
@@ -652,6 +658,24 @@ class MomentumMap:
         values = self._params if params is None else np.asarray(params, dtype=float)
         generator = self._evaluate(*np.moveaxis(q, -1, 0), *values)
         return np.sum(p * generator, axis=-1)
+
+
+def _contacts_in_plain_symbols(contacts, symbols: MechanicsSymbols):
+    """The contacts of a model in dynamicsymbols, their gaps and slips in plain symbols."""
+    if contacts is None:
+        return None
+    if isinstance(contacts, Contact):
+        contacts = [contacts]
+    out = []
+    for j, c in enumerate(contacts):
+        if not isinstance(c, Contact):
+            raise TypeError(f"contacts[{j}] must be a galerkin_vi.Contact, got {c!r}")
+        slip = None
+        if c.slip is not None:
+            slip = tuple(symbols.to_plain(w, f"contacts[{j}].slip") for w in c.slip)
+        gap = symbols.to_plain(c.gap, f"contacts[{j}].gap")
+        out.append(Contact(gap, c.restitution, c.friction, slip))
+    return out
 
 
 def _check_values_given(model: PlainModel, params: Mapping[sp.Symbol, float]) -> None:

@@ -58,6 +58,12 @@ class Trajectory:
     t_events, q_events, v_events, p_events : list of ndarray or None
         With ``integrate(..., events=...)``: per event, the times (m,) and
         the positions, velocities and momenta (m, n) of its occurrences.
+    impacts : list of Impact or None
+        For a system with contacts: every impact, in time order
+        (:class:`galerkin_vi.contact.Impact`: time, contact, normal and
+        tangential impulse, stick or slide, energy lost). The rows of an
+        impact appear twice, at the same time and position, with the momentum
+        before and after it.
     """
 
     t: NDArray[np.float64]
@@ -78,6 +84,7 @@ class Trajectory:
     q_events: list[NDArray[np.float64]] | None = None
     v_events: list[NDArray[np.float64]] | None = None
     p_events: list[NDArray[np.float64]] | None = None
+    impacts: list | None = None
 
     def __len__(self) -> int:
         return self.t.shape[0]

@@ -1,0 +1,200 @@
+r"""The impact law: the momentum jump of an impact with restitution and Coulomb friction.
+
+At an impact of contact j at :math:`(t, q)` the positions stay and the
+momentum jumps by the impulse along the contact's directions,
+
+.. math::
+
+    p^+ = p^- + \Lambda_n \nabla\varphi(q) + T(q)^{\mathsf T}\Lambda_t,
+    \qquad L_v(t, q, v^\pm) = p^\pm,
+
+with :math:`T = \partial w/\partial v` the rows of the slip velocities
+:math:`w = T v + w_0`. Newton's law fixes the normal part,
+:math:`u^+ = -e\,u^-` with :math:`u = \nabla\varphi\cdot v`; Coulomb's law the
+tangential part: the contact **sticks** (:math:`w^+ = 0`) when the impulse
+that stops the slip lies in the cone :math:`\|\Lambda_t\| \le \mu\Lambda_n`, and
+otherwise **slides** with :math:`\Lambda_t = -\mu\Lambda_n\, w^+/\|w^+\|`, the
+impulse of maximum dissipation (the direction of the post-impact slip is
+found by fixed-point iteration, exact in the plane).
+
+The unknowns :math:`(v^+, \Lambda)` solve these equations by Newton's method
+with the exact Jacobian :math:`\begin{pmatrix} L_{vv} & -G^{\mathsf T} \\ G & 0
+\end{pmatrix}`; for L quadratic in v one iteration is exact. Without friction
+and with e = 1 the energy :math:`H(q, p)` is the same before and after (the
+velocity is reflected in the metric :math:`L_{vv}`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+from numpy.typing import NDArray
+
+__all__ = ["ContactFunctions", "Impact", "impulse"]
+
+_NEWTON_ITERATIONS = 30
+_DIRECTION_ITERATIONS = 50
+
+
+@dataclass(frozen=True)
+class Impact:
+    """One impact of a run.
+
+    Attributes
+    ----------
+    t : float
+        Its time.
+    contact : int
+        The index of the contact in ``system.contacts``.
+    normal_impulse : float
+        :math:`\\Lambda_n \\ge 0`.
+    tangential_impulse : ndarray, shape (k,)
+        :math:`\\Lambda_t` (empty without friction).
+    mode : str
+        ``"frictionless"``, ``"stick"`` or ``"slide"``.
+    normal_velocity : tuple of float
+        :math:`(u^-, u^+)`.
+    energy_lost : float
+        :math:`H(q, p^-) - H(q, p^+)`.
+    """
+
+    t: float
+    contact: int
+    normal_impulse: float
+    tangential_impulse: NDArray[np.float64]
+    mode: str
+    normal_velocity: tuple[float, float]
+    energy_lost: float
+
+
+class ContactFunctions:
+    """Numeric gap, gradient and slip rows of a system's contacts (from SymPy, exact)."""
+
+    def __init__(self, system) -> None:
+        args = (system.t if system.t is not None else sp.Dummy("t"), *system.q, *system.params)
+        self._system = system
+        self.gaps: list[Callable] = []
+        self.gradients: list[Callable] = []
+        self.slips: list[tuple[Callable, Callable] | None] = []
+        for contact in system.contacts:
+            self.gaps.append(sp.lambdify(args, contact.gap, "numpy"))
+            grad = [sp.diff(contact.gap, a) for a in system.q]
+            self.gradients.append(sp.lambdify(args, grad, "numpy"))
+            if contact.slip is None or contact.friction == 0.0:
+                self.slips.append(None)
+                continue
+            rows = [[sp.diff(w, b) for b in system.v] for w in contact.slip]
+            rest = [w.subs(dict.fromkeys(system.v, 0)) for w in contact.slip]
+            self.slips.append(
+                (sp.lambdify(args, rows, "numpy"), sp.lambdify(args, rest, "numpy"))
+            )
+
+    def gap(self, j: int, t: float, q, prm) -> float:
+        return float(self.gaps[j](t, *q, *prm))
+
+    def gradient(self, j: int, t: float, q, prm) -> NDArray[np.float64]:
+        return np.asarray(self.gradients[j](t, *q, *prm), dtype=float).reshape(-1)
+
+    def slip_rows(self, j: int, t: float, q, prm):
+        """(T, w0) of :math:`w = T v + w_0`, or None without friction."""
+        pair = self.slips[j]
+        if pair is None:
+            return None
+        n = self._system.n
+        rows = np.asarray(pair[0](t, *q, *prm), dtype=float).reshape(-1, n)
+        return rows, np.asarray(pair[1](t, *q, *prm), dtype=float).reshape(-1)
+
+
+def impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) -> tuple:
+    """The momentum after an impact of contact ``j`` at ``(t, q)`` with momentum ``p``.
+
+    Returns ``(p_plus, impact)`` with ``impact`` an :class:`Impact`.
+
+    Raises
+    ------
+    ValueError
+        When the contact is not approaching (:math:`u^- \\ge 0`): no impact.
+    """
+    contact = system.contacts[j]
+    params = dict(zip(system.params, prm, strict=True))
+    q, p = np.asarray(q, dtype=float), np.asarray(p, dtype=float)
+    v_minus = system.inverse_legendre(q, p, t, params)
+    g = functions.gradient(j, t, q, prm)
+    u_minus = float(g @ v_minus)
+    if not u_minus < 0.0:
+        raise ValueError(f"contact {j} at t = {t}: not approaching (normal velocity {u_minus})")
+    e = contact.restitution
+    slip = functions.slip_rows(j, t, q, prm)
+    if slip is None:
+        v_plus, lam = _solve(system, t, q, p, v_minus, prm, g[None], g[None], [-e * u_minus])
+        mode, tangential = "frictionless", np.zeros(0)
+        p_plus = p + lam[0] * g
+    else:
+        rows, w0 = slip
+        G = np.vstack([g, rows])
+        # sticking: the slip stopped as well
+        v_plus, lam = _solve(system, t, q, p, v_minus, prm, G, G, [-e * u_minus, *(-w0)])
+        if np.linalg.norm(lam[1:]) <= contact.friction * lam[0]:
+            mode, tangential = "stick", lam[1:]
+            p_plus = p + G.T @ lam
+        else:
+            mode = "slide"
+            v_plus, normal, tangential = _sliding(
+                system, t, q, p, v_minus, prm, g, rows, w0, -e * u_minus, contact.friction
+            )
+            p_plus = p + normal * g + rows.T @ tangential
+            lam = np.array([normal])
+    H = system.hamiltonian(np.vstack([q, q]), np.vstack([p, p_plus]), t, params)
+    impact = Impact(
+        t=float(t),
+        contact=j,
+        normal_impulse=float(lam[0]),
+        tangential_impulse=np.asarray(tangential, dtype=float),
+        mode=mode,
+        normal_velocity=(u_minus, float(g @ v_plus)),
+        energy_lost=float(H[0] - H[1]),
+    )
+    return p_plus, impact
+
+
+def _solve(system, t, q, p, v0, prm, D, C, targets) -> tuple[NDArray, NDArray]:
+    r"""Newton on :math:`L_v(v) = p + D^{\mathsf T}\Lambda`, :math:`C v = \text{targets}`.
+
+    The exact Jacobian :math:`\begin{pmatrix} L_{vv} & -D^{\mathsf T} \\ C & 0
+    \end{pmatrix}`; from :math:`v^-`, one iteration when L is quadratic in v.
+    """
+    n, k = system.n, D.shape[0]
+    v, lam = v0.copy(), np.zeros(k)
+    targets = np.asarray(targets, dtype=float)
+    for _ in range(_NEWTON_ITERATIONS):
+        Lv = system.evaluate("Lv", t, q, v, prm)
+        Lvv = system.evaluate("Lvv", t, q, v, prm).reshape(n, n)
+        residual = np.concatenate([Lv - p - D.T @ lam, C @ v - targets])
+        K = np.block([[Lvv, -D.T], [C, np.zeros((k, k))]])
+        step = np.linalg.solve(K, -residual)
+        v, lam = v + step[:n], lam + step[n:]
+        if np.max(np.abs(step)) <= 1e-15 * max(1.0, np.max(np.abs(v)), np.max(np.abs(lam))):
+            break
+    return v, lam
+
+
+def _sliding(system, t, q, p, v_minus, prm, g, rows, w0, target, mu):
+    """Sliding: :math:`\Lambda_t = -\mu\Lambda_n d` with d the post-impact slip direction
+    (fixed point from the pre-impact direction; exact in the plane)."""
+    w = rows @ v_minus + w0
+    d = w / np.linalg.norm(w)
+    for _ in range(_DIRECTION_ITERATIONS):
+        # one unknown, the normal impulse, along the combined direction g - mu T^T d
+        direction = (g - mu * (rows.T @ d))[None]
+        v, lam = _solve(system, t, q, p, v_minus, prm, direction, g[None], [target])
+        w_plus = rows @ v + w0
+        size = np.linalg.norm(w_plus)
+        new = w_plus / size if size > 0.0 else d
+        done = np.max(np.abs(new - d)) <= 1e-14
+        d = new if size > 0.0 else d
+        if done or rows.shape[0] == 1:
+            break
+    return v, float(lam[0]), -mu * lam[0] * d
