@@ -57,7 +57,8 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import ConvergenceError
-from .integrator import Integrator, check_failure_mode, failed_run, state_vector
+from .failures import check_failure_mode, failed_run
+from .integrator import Integrator, state_vector
 from .method import Galerkin
 from .status import RunStatus
 from .system import LagrangianSystem

@@ -35,7 +35,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from .backends import numpy as numpy_backend
 from .chunks import single_call
-from .growth import EXPLOSIVE_GROWTH
+from .failures import check_failure_mode
+from .growth import EXPLOSIVE_GROWTH, INSTABILITY_GROWTH
 from .trajectory import Trajectory
 
 __all__ = ["Ensemble", "compile_statistics", "integrate_many", "member_parameters"]
@@ -236,8 +237,6 @@ def member_outputs(integrator, q, name, x, params, run, workers) -> tuple[Member
     What an executor's worker computes for a block of members: arrays only, which
     travel cheaply; the trajectories are made where the ensemble is assembled.
     """
-    from .integrator import check_failure_mode  # noqa: PLC0415 - integrator imports us
-
     check_failure_mode(run.get("on_failure", "warn"))
     system = integrator.system
     h, n_steps, t0, save_every = integrator._run_plan(
@@ -392,8 +391,6 @@ def _explosive_ends(q: NDArray, p: NDArray) -> NDArray[np.bool_]:
 
 def _momenta_grew(system, p: NDArray) -> NDArray[np.bool_]:
     """Members that integrate() would warn about (momenta grown 1e6-fold; see there)."""
-    from .integrator import INSTABILITY_GROWTH  # noqa: PLC0415 - integrator imports us
-
     N = p.shape[1]
     structure = system.structure
     if N < 10 or structure.forced or not structure.autonomous:

@@ -139,8 +139,12 @@ def event_function(event: Event, system: LagrangianSystem) -> Callable:
             raise ValueError(
                 f"the event {expr} contains symbols that are not the system's: {names}"
             )
-        args = [system.time_symbol, *system.q, *system.v, *system.params]
-        fn = sp.lambdify(args, expr, modules=[np])
+        # lambdify costs milliseconds: kept with the system (a contact run asks often)
+        cache = system.__dict__.setdefault("_event_functions", {})
+        if expr not in cache:
+            args = [system.time_symbol, *system.q, *system.v, *system.params]
+            cache[expr] = sp.lambdify(args, expr, modules=[np])
+        fn = cache[expr]
 
         def values(t, q, v, prm):
             out = fn(t, *q.T, *v.T, *prm)

@@ -22,10 +22,13 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["EXPLOSIVE_GROWTH", "explosive_row"]
+__all__ = ["EXPLOSIVE_GROWTH", "INSTABILITY_GROWTH", "explosive_row"]
 
 #: growth of a state's size in one step beyond which the step is not trusted
 EXPLOSIVE_GROWTH = 1e3
+#: momenta grown by more than this factor over a run (first against last tenth of the
+#: saved states) signal a step size past the stability limit (``InstabilityWarning``)
+INSTABILITY_GROWTH = 1e6
 
 
 def explosive_row(

@@ -25,7 +25,8 @@ from .errors import (
     RunFailureWarning,
 )
 from .events import apply_events, as_events, event_function, locate_events, terminal_stop
-from .growth import EXPLOSIVE_GROWTH, explosive_row
+from .failures import check_failure_mode, failed_run
+from .growth import EXPLOSIVE_GROWTH, INSTABILITY_GROWTH, explosive_row
 from .method import Galerkin
 from .newton import CONVERGED, newton_solve
 from .separable import has_stage_form, separable_tables
@@ -35,13 +36,8 @@ from .trajectory import Trajectory
 
 __all__ = ["Integrator"]
 
-# momenta that grow by more than this factor over a run signal an unstable step size
-INSTABILITY_GROWTH = 1e6
 # below this many stage unknowns the constant-mass iteration does not pay (measured)
 MIN_UNKNOWNS_CONSTANT_MASS = 1
-
-#: what ``integrate(on_failure=...)`` does with a failed run
-FAILURE_MODES = ("warn", "raise")
 
 
 def state_vector(name: str, x: ArrayLike, n: int) -> NDArray[np.float64]:
@@ -965,32 +961,6 @@ class Integrator:
                 residual=result.increment,
             )
         return qb + result.x[-n:]
-
-
-def check_failure_mode(on_failure: object) -> None:
-    """Reject an ``on_failure`` that is not one of :data:`FAILURE_MODES`."""
-    if on_failure not in FAILURE_MODES:
-        raise ValueError(f"on_failure must be one of {FAILURE_MODES}, got {on_failure!r}")
-
-
-def failed_run(
-    traj: Trajectory, on_failure: str, *, step: int, t: float, residual: float, stacklevel: int = 3
-):
-    """A failed run's trajectory, returned with a warning or raised as ``.partial``.
-
-    ``traj`` carries the failure's ``status`` and ``message`` already.
-    """
-    if on_failure == "raise":
-        raise ConvergenceError(
-            f"{traj.message} The trajectory up to the failing step is in .partial.",
-            step=step,
-            t=t,
-            residual=float(residual),
-            partial=traj,
-        )
-    # stacklevel: the user's call (of integrate(), next() of a stream), not the library
-    warnings.warn(traj.message, RunFailureWarning, stacklevel=stacklevel)
-    return traj
 
 
 def _requested_times(t_eval, t0: float, h: float, n_steps: int) -> NDArray | None:

@@ -22,7 +22,6 @@ from .mechanics import (
     uses_dynamicsymbols,
 )
 from .numeric import FlatEvaluator
-from .unilateral import Contact, check_contacts
 from .symbolic import (
     ConstraintPieces,
     PointwisePieces,
@@ -33,6 +32,7 @@ from .symbolic import (
     pointwise_pieces,
     without_point_masses,
 )
+from .unilateral import Contact, check_contacts
 
 __all__ = ["LagrangianSystem", "MomentumMap", "are_regular", "is_regular"]
 
@@ -406,6 +406,7 @@ class LagrangianSystem:
         # sent to another process (an ensemble's worker) builds them again on first use
         state = self.__dict__.copy()
         state.pop("_evaluators", None)
+        state.pop("_event_functions", None)
         return state
 
     # ----------------------------------------------------------- evaluation

@@ -88,12 +88,15 @@ class ContactFunctions:
                 continue
             rows = [[sp.diff(w, b) for b in system.v] for w in contact.slip]
             rest = [w.subs(dict.fromkeys(system.v, 0)) for w in contact.slip]
-            self.slips.append(
-                (sp.lambdify(args, rows, "numpy"), sp.lambdify(args, rest, "numpy"))
-            )
+            self.slips.append((sp.lambdify(args, rows, "numpy"), sp.lambdify(args, rest, "numpy")))
 
     def gap(self, j: int, t: float, q, prm) -> float:
         return float(self.gaps[j](t, *q, *prm))
+
+    def gaps_at(self, j: int, t: NDArray, q: NDArray, prm) -> NDArray[np.float64]:
+        """The gap of contact j at rows ``q`` (m, n) and times ``t`` (m,)."""
+        out = self.gaps[j](t, *q.T, *prm)
+        return np.broadcast_to(np.asarray(out, dtype=float), t.shape)
 
     def gradient(self, j: int, t: float, q, prm) -> NDArray[np.float64]:
         return np.asarray(self.gradients[j](t, *q, *prm), dtype=float).reshape(-1)
@@ -182,7 +185,7 @@ def _solve(system, t, q, p, v0, prm, D, C, targets) -> tuple[NDArray, NDArray]:
 
 
 def _sliding(system, t, q, p, v_minus, prm, g, rows, w0, target, mu):
-    """Sliding: :math:`\Lambda_t = -\mu\Lambda_n d` with d the post-impact slip direction
+    r"""Sliding: :math:`\Lambda_t = -\mu\Lambda_n d` with d the post-impact slip direction
     (fixed point from the pre-impact direction; exact in the plane)."""
     w = rows @ v_minus + w0
     d = w / np.linalg.norm(w)

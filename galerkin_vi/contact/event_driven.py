@@ -1,0 +1,260 @@
+r"""Isolated impacts at the method's order: the variational collision integrator.
+
+Between impacts the run is the ordinary Galerkin integration on the grid
+:math:`t_k = t_0 + k h`. When the gap of a contact closes during step k,
+the step is cut where it closes, as in the variational collision integrators
+of Fetecau, Marsden, Ortiz and West (2003): a step of the same discrete
+Lagrangian of length :math:`\alpha h` from :math:`(q_k, p_k)` whose end lies on
+:math:`\varphi = 0`, with :math:`\alpha` the unknown (a secant iteration
+started at the root of the dense output, :mod:`galerkin_vi.events` with
+``exact=True``). There the impact law (:mod:`.impact`) maps :math:`p^-` to
+:math:`p^+`, and a second step of length :math:`(1 - \alpha) h` lands back on
+:math:`t_{k+1}` (cut again if another impact falls inside it). The grid never
+shifts, the impact time has the method's nodal accuracy, and so, with finitely
+many impacts, has the whole run: its order is the method's (measured in the
+tests and the contact how-to). With e = 1 and no friction the impact keeps
+:math:`H(q, p)`.
+
+What isolated impacts cannot continue is a contact that persists: a body
+coming to rest on the floor (impacts accumulating, infinitely many before the
+Zeno time), one pressed against it after a plastic impact, or sliding. The run
+stops there with status :attr:`~galerkin_vi.RunStatus.CONTACT_PERSISTS`, every
+state before it kept, and says so.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import replace
+
+import numpy as np
+
+from ..errors import ConvergenceError, RunFailureWarning
+from ..events import Event
+from ..failures import check_failure_mode, failed_run
+from ..status import RunStatus
+from .impact import ContactFunctions, Impact, impulse
+
+__all__ = ["MAX_IMPACTS_PER_STEP", "PENETRATION", "integrate_with_contacts"]
+
+#: more impacts than this within one step: they accumulate (a body coming to rest)
+MAX_IMPACTS_PER_STEP = 64
+#: a node with a gap below -PENETRATION * max(1, |q|) was not reached by an impact
+PENETRATION = 1e-12
+#: steps of the first smooth piece; pieces double while no impact occurs
+FIRST_PIECE = 128
+LONGEST_PIECE = 65536
+
+
+def integrate_with_contacts(
+    integrator, q0, v0, p0, *, h, n_steps, t0, params, save_every, project, on_failure,
+    dense_output, t_span, events, progress, t_eval,
+):  # fmt: skip
+    """:meth:`Integrator.integrate` of a system with contacts (the module's method)."""
+    unsupported = [
+        name
+        for name, given in (
+            ("save_every", save_every != 1), ("dense_output", bool(dense_output)),
+            ("events", events is not None), ("t_eval", t_eval is not None),
+            ("project", bool(project)),
+        )  # fmt: skip
+        if given
+    ]
+    if unsupported:
+        raise NotImplementedError(
+            f"a system with contacts does not take {', '.join(unsupported)} yet"
+        )
+    check_failure_mode(on_failure)
+    system = integrator.system
+    h, n_steps, t0, _ = integrator._run_plan(h, n_steps, t_span, t0, 1)
+    prm = system.parameter_vector(params)
+    functions = ContactFunctions(system)
+    q = integrator._state("q0", q0)
+    _check_initial_gaps(system, functions, t0, q, prm)
+    q, p, _ = integrator._initial_state(q, v0, p0, t0, prm, False)
+    run = _Run(integrator, functions, prm, h, progress)
+    run.rows(t0, q, p)
+    k = 0  # grid index of the current state
+    piece = FIRST_PIECE
+    try:
+        while k < n_steps:
+            steps = min(piece, n_steps - k)
+            end = run.smooth(q, p, t0 + k * h, h, steps)
+            if end.status != RunStatus.TERMINATED:
+                run.rows(t0 + (k + np.arange(1, steps + 1)) * h, end.q[1:], end.p[1:])
+                run.check_penetration(end.q[1:], t0 + (k + 1) * h, k + 1)
+                q, p, k = end.q[-1], end.p[-1], k + steps
+                piece = min(2 * piece, LONGEST_PIECE)
+                continue
+            # an impact in step k + j: the rows of its nodes, then through the step
+            j = len(end.t) - 2
+            run.rows(t0 + (k + np.arange(1, j + 1)) * h, end.q[1 : j + 1], end.p[1 : j + 1])
+            run.check_penetration(end.q[1 : j + 1], t0 + (k + 1) * h, k + 1)
+            start = (t0 + (k + j) * h, end.q[j], end.p[j])
+            q, p = run.through_step(start, t0 + (k + j + 1) * h, end, k + j)
+            k += j + 1
+            piece = max(FIRST_PIECE, 2 * j)
+    except _Stop as stop:
+        return run.stopped(stop, on_failure)
+    return run.trajectory(RunStatus.COMPLETED, RunStatus.COMPLETED.cause)
+
+
+class _Stop(Exception):
+    """The run cannot go on: a failed step or a persisting contact."""
+
+    def __init__(self, status: RunStatus, message: str, step: int, t: float, residual=np.nan):
+        super().__init__(message)
+        self.status, self.message, self.step, self.t, self.residual = (
+            status, message, step, t, residual,
+        )  # fmt: skip
+
+
+class _Run:
+    """The rows and impacts of a run with contacts, as they are computed."""
+
+    def __init__(self, integrator, functions: ContactFunctions, prm, h: float, progress) -> None:
+        self.integrator, self.functions, self.prm, self.h = integrator, functions, prm, h
+        self.system = integrator.system
+        self.params = dict(zip(self.system.params, prm, strict=True))
+        self.events = [
+            Event(c.gap, terminal=True, direction=-1.0, exact=True) for c in self.system.contacts
+        ]
+        self._t: list = []
+        self._q: list = []
+        self._p: list = []
+        self.impacts: list[Impact] = []
+        self.iterations = 0
+
+    def rows(self, t, q, p) -> None:
+        self._t.append(np.atleast_1d(np.asarray(t, dtype=float)))
+        self._q.append(np.atleast_2d(q))
+        self._p.append(np.atleast_2d(p))
+
+    def smooth(self, q, p, t_start: float, h: float, steps: int, events: bool = True):
+        """``steps`` Galerkin steps of size h from (q, p); stops at a closing gap."""
+        try:
+            traj = self.integrator._integrate_smooth(
+                q, None, p, h=h, n_steps=steps, t0=t_start, params=self.params,
+                save_every=1, project=False, on_failure="raise", dense_output=False,
+                t_span=None, events=self.events if events else None, progress=False,
+                t_eval=None,
+            )  # fmt: skip
+        except ConvergenceError as exc:
+            partial = exc.partial
+            if len(partial) > 1:
+                self.rows(partial.t[1:], partial.q[1:], partial.p[1:])
+            raise _Stop(partial.status, partial.message, exc.step, exc.t, exc.residual) from None
+        self.iterations += traj.total_newton_iterations
+        return traj
+
+    def through_step(self, start, t_end: float, end, step: int):
+        """From the node before an impact to the grid time ``t_end``, impacts applied.
+
+        ``end`` is the smooth run that stopped at the impact. Returns (q, p) at ``t_end``.
+        """
+        t_s, q_s, p_s = start
+        t_hit = float(end.t[-1])
+        for _ in range(MAX_IMPACTS_PER_STEP):
+            j = self._which(end)
+            if t_hit - t_s <= 4 * np.finfo(float).eps * max(1.0, abs(t_hit)):
+                raise self._persists(j, t_hit, step, "the gap closes again at once")
+            q_hit, p_minus = self.integrator.step(q_s, p_s, t_hit - t_s, t0=t_s, params=self.params)
+            try:
+                p_plus, impact = impulse(
+                    self.system, self.functions, j, t_hit, q_hit, p_minus, self.prm
+                )
+            except ValueError:
+                # grazing: the gap closed with a normal velocity of round-off size
+                p_plus, impact = p_minus, None
+            if impact is not None:
+                self.impacts.append(impact)
+                self.rows([t_hit, t_hit], [q_hit, q_hit], [p_minus, p_plus])
+            t_s, q_s, p_s = t_hit, q_hit, p_plus
+            if t_end - t_s <= 4 * np.finfo(float).eps * max(1.0, abs(t_end)):
+                return q_s, p_s  # the impact fell on the grid time
+            end = self.smooth(q_s, p_s, t_s, t_end - t_s, 1, events=impact is not None)
+            if end.status != RunStatus.TERMINATED:
+                self.rows(t_end, end.q[-1], end.p[-1])
+                self.check_penetration(end.q[-1:], t_end, step + 1)
+                return end.q[-1], end.p[-1]
+            t_hit = float(end.t[-1])
+        raise self._persists(
+            self._which(end), t_hit, step, f"more than {MAX_IMPACTS_PER_STEP} impacts in one step"
+        )
+
+    def check_penetration(self, q, t_first: float, step_first: int) -> None:
+        """Stop where a node lies inside a contact that no impact reached."""
+        q = np.atleast_2d(q)
+        t = t_first + self.h * np.arange(len(q))
+        bound = -PENETRATION * np.maximum(1.0, np.abs(q).max(axis=1))
+        for j in range(len(self.system.contacts)):
+            inside = np.flatnonzero(self.functions.gaps_at(j, t, q, self.prm) < bound)
+            if inside.size:
+                r = int(inside[0])
+                gap = self.functions.gap(j, t[r], q[r], self.prm)
+                # the rows from this node on are not trusted: drop them
+                self._drop_after(t[r] - self.h)
+                raise self._persists(j, t[r] - self.h, step_first + r - 1, f"gap {gap:.3g}")
+
+    def _drop_after(self, t: float) -> None:
+        t_all = np.concatenate(self._t)
+        keep = int(np.searchsorted(t_all, t, side="right"))
+        q_all, p_all = np.concatenate(self._q), np.concatenate(self._p)
+        self._t, self._q, self._p = [t_all[:keep]], [q_all[:keep]], [p_all[:keep]]
+
+    def _which(self, end) -> int:
+        """The contact whose event stopped the smooth run ``end``."""
+        stop = end.t[-1]
+        return next(j for j, te in enumerate(end.t_events) if te.size and te[-1] == stop)
+
+    def _persists(self, j: int, t: float, step: int, detail: str) -> _Stop:
+        contact = self.system.contacts[j]
+        message = (
+            f"step {step} (t = {t:.6g}): contact {j} (gap {contact.gap}): "
+            f"{RunStatus.CONTACT_PERSISTS.cause} ({detail}); the states before are kept"
+        )
+        return _Stop(RunStatus.CONTACT_PERSISTS, message, step, t)
+
+    def trajectory(self, status: RunStatus, message: str):
+        from ..trajectory import Trajectory
+
+        t, q, p = np.concatenate(self._t), np.concatenate(self._q), np.concatenate(self._p)
+        return Trajectory(
+            t=t,
+            q=q,
+            p=p,
+            newton_iterations=np.zeros(0, dtype=np.uint8),
+            total_newton_iterations=self.iterations,
+            n_steps=int(np.round((t[-1] - t[0]) / self.h)),
+            max_residual=0.0,
+            system=self.system,
+            params=self.prm,
+            order=self.integrator.method.order,
+            status=status,
+            message=message,
+            impacts=list(self.impacts),
+        )
+
+    def stopped(self, stop: _Stop, on_failure: str):
+        traj = self.trajectory(stop.status, stop.message)
+        if stop.status == RunStatus.CONTACT_PERSISTS:
+            # the model's limit here, not a numerical failure: warned, never raised
+            warnings.warn(stop.message, RunFailureWarning, stacklevel=4)
+            return traj
+        return failed_run(
+            replace(traj), on_failure, step=stop.step, t=stop.t, residual=stop.residual,
+            stacklevel=5,
+        )  # fmt: skip
+
+
+def _check_initial_gaps(system, functions: ContactFunctions, t0: float, q, prm) -> None:
+    scale = max(1.0, float(np.max(np.abs(q))))
+    for j, contact in enumerate(system.contacts):
+        gap = functions.gap(j, t0, q, prm)
+        if not np.isfinite(gap):
+            raise ValueError(f"contacts[{j}] (gap {contact.gap}): the gap at q0 is {gap}")
+        if gap < -PENETRATION * scale:
+            raise ValueError(
+                f"contacts[{j}] (gap {contact.gap}): q0 = {q} penetrates the contact "
+                f"(gap {gap:.3g} < 0)"
+            )
