@@ -364,6 +364,7 @@ class Integrator:
         events: object = None,
         progress: bool | None = None,
         t_eval: ArrayLike | None = None,
+        contact_mode: str = "auto",
     ) -> Trajectory:
         """Integrate ``n_steps`` steps of size ``h`` from ``q0`` and ``v0`` or ``p0``.
 
@@ -428,6 +429,13 @@ class Integrator:
             with the states computed so far (their dense output and events
             included), ``status`` :attr:`RunStatus.INTERRUPTED` and a warning,
             whatever ``on_failure`` says.
+        contact_mode : {"auto", "event"}
+            Systems with contacts (:mod:`galerkin_vi.contact`): isolated impacts
+            located and applied at the method's order, switching to a
+            complementarity problem per step where a contact persists or its
+            impacts accumulate and back where it releases (``"auto"``,
+            default), or isolated impacts only, stopping with status
+            ``CONTACT_PERSISTS`` where they cannot go on (``"event"``).
 
         Returns
         -------
@@ -464,7 +472,9 @@ class Integrator:
         if self.system.contacts:
             from .contact.event_driven import integrate_with_contacts
 
-            return integrate_with_contacts(self, q0, v0, p0, **run)
+            return integrate_with_contacts(self, q0, v0, p0, contact_mode=contact_mode, **run)
+        if contact_mode != "auto":
+            raise ValueError(f"contact_mode={contact_mode!r} needs a system with contacts")
         return self._integrate_smooth(q0, v0, p0, **run)
 
     def _integrate_smooth(
@@ -635,7 +645,10 @@ class Integrator:
 
         def method_step(k: int, tau: float):
             # one step of the method from node k, of length tau (exact event times)
-            q, p = self.step(traj.q[k], traj.p[k], tau, t0=float(traj.t[k]), params=prm_map)
+            if tau == 0.0:  # the event at the node itself
+                q, p = traj.q[k].copy(), traj.p[k].copy()
+            else:
+                q, p = self.step(traj.q[k], traj.p[k], tau, t0=float(traj.t[k]), params=prm_map)
             v = self.system.inverse_legendre(q, p, traj.t[k] + tau, prm_map)
             return q, v
 

@@ -85,6 +85,7 @@ class Trajectory:
     v_events: list[NDArray[np.float64]] | None = None
     p_events: list[NDArray[np.float64]] | None = None
     impacts: list | None = None
+    contact_forces: object | None = None
 
     def __len__(self) -> int:
         return self.t.shape[0]

@@ -28,12 +28,13 @@ import warnings
 from dataclasses import replace
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..errors import ConvergenceError, RunFailureWarning
 from ..events import Event
 from ..failures import check_failure_mode, failed_run
 from ..status import RunStatus
-from .impact import ContactFunctions, Impact, impulse
+from .impact import ContactFunctions, Impact, impulse, stop_slip
 
 __all__ = ["MAX_IMPACTS_PER_STEP", "PENETRATION", "integrate_with_contacts"]
 
@@ -46,16 +47,24 @@ FIRST_PIECE = 128
 LONGEST_PIECE = 65536
 
 
+#: the modes of ``integrate(contact_mode=...)``
+CONTACT_MODES = ("auto", "event", "time-stepping")
+#: normal impulses (force times step) below this leave a contact released
+RELEASED_IMPULSE = 1e-12
+
+
 def integrate_with_contacts(
     integrator, q0, v0, p0, *, h, n_steps, t0, params, save_every, project, on_failure,
-    dense_output, t_span, events, progress, t_eval,
+    dense_output, t_span, events, progress, t_eval, contact_mode,
 ):  # fmt: skip
     """:meth:`Integrator.integrate` of a system with contacts (the module's method)."""
     unsupported = [
         name
         for name, given in (
-            ("save_every", save_every != 1), ("dense_output", bool(dense_output)),
-            ("events", events is not None), ("t_eval", t_eval is not None),
+            ("save_every", save_every != 1),
+            ("dense_output", bool(dense_output)),
+            ("events", events is not None),
+            ("t_eval", t_eval is not None),
             ("project", bool(project)),
         )  # fmt: skip
         if given
@@ -64,6 +73,14 @@ def integrate_with_contacts(
         raise NotImplementedError(
             f"a system with contacts does not take {', '.join(unsupported)} yet"
         )
+    if contact_mode == "time-stepping":
+        raise NotImplementedError(
+            "contact_mode='time-stepping' from the start is not available yet: an impact "
+            "inside a time-stepping step needs a velocity-level impact law in the step; "
+            "'auto' switches to time-stepping where contact persists"
+        )
+    if contact_mode not in CONTACT_MODES:
+        raise ValueError(f"contact_mode must be one of {CONTACT_MODES}, got {contact_mode!r}")
     check_failure_mode(on_failure)
     system = integrator.system
     h, n_steps, t0, _ = integrator._run_plan(h, n_steps, t_span, t0, 1)
@@ -74,26 +91,24 @@ def integrate_with_contacts(
     q, p, _ = integrator._initial_state(q, v0, p0, t0, prm, False)
     run = _Run(integrator, functions, prm, h, progress)
     run.rows(t0, q, p)
-    k = 0  # grid index of the current state
-    piece = FIRST_PIECE
+    k = 0  # grid index of the current state (or of the step it lies in)
+    stepping = contact_mode == "time-stepping"
     try:
         while k < n_steps:
-            steps = min(piece, n_steps - k)
-            end = run.smooth(q, p, t0 + k * h, h, steps)
-            if end.status != RunStatus.TERMINATED:
-                run.rows(t0 + (k + np.arange(1, steps + 1)) * h, end.q[1:], end.p[1:])
-                run.check_penetration(end.q[1:], t0 + (k + 1) * h, k + 1)
-                q, p, k = end.q[-1], end.p[-1], k + steps
-                piece = min(2 * piece, LONGEST_PIECE)
+            if stepping:
+                k, released = run.time_steps(k, t0, n_steps, until_release=contact_mode == "auto")
+                stepping = not released
                 continue
-            # an impact in step k + j: the rows of its nodes, then through the step
-            j = len(end.t) - 2
-            run.rows(t0 + (k + np.arange(1, j + 1)) * h, end.q[1 : j + 1], end.p[1 : j + 1])
-            run.check_penetration(end.q[1 : j + 1], t0 + (k + 1) * h, k + 1)
-            start = (t0 + (k + j) * h, end.q[j], end.p[j])
-            q, p = run.through_step(start, t0 + (k + j + 1) * h, end, k + j)
-            k += j + 1
-            piece = max(FIRST_PIECE, 2 * j)
+            try:
+                k = run.event_driven(k, t0, n_steps)
+            except _Stop as stop:
+                if stop.status != RunStatus.CONTACT_PERSISTS or contact_mode != "auto":
+                    raise
+                # from the last state kept on: a complementarity problem per step
+                t_last = float(run.last()[0])
+                k = int(np.floor((t_last - t0) / h * (1 + 4 * np.finfo(float).eps)))
+                run.switches.append((t_last, stop.message))
+                stepping = True
     except _Stop as stop:
         return run.stopped(stop, on_failure)
     return run.trajectory(RunStatus.COMPLETED, RunStatus.COMPLETED.cause)
@@ -124,8 +139,111 @@ class _Run:
         self._p: list = []
         self.impacts: list[Impact] = []
         self.iterations = 0
+        self.switches: list[tuple[float, str]] = []
+        self.forces: list[tuple[float, NDArray, NDArray, int, float]] = []
+        self._stepper = None
+        self._duals = None
+
+    def last(self):
+        """(t, q, p) of the last row."""
+        return self._t[-1][-1], self._q[-1][-1], self._p[-1][-1]
+
+    def event_driven(self, k: int, t0: float, n_steps: int) -> int:
+        """Isolated impacts from grid node k to the run's end; returns the end's index."""
+        h = self.h
+        _, q, p = self.last()
+        piece = FIRST_PIECE
+        while k < n_steps:
+            steps = min(piece, n_steps - k)
+            end = self.smooth(q, p, t0 + k * h, h, steps)
+            if end.status != RunStatus.TERMINATED:
+                self.rows(t0 + (k + np.arange(1, steps + 1)) * h, end.q[1:], end.p[1:])
+                self.check_penetration(end.q[1:], t0 + (k + 1) * h, k + 1)
+                q, p, k = end.q[-1], end.p[-1], k + steps
+                piece = min(2 * piece, LONGEST_PIECE)
+                continue
+            # an impact in step k + j: the rows of its nodes, then through the step
+            j = len(end.t) - 2
+            self.rows(t0 + (k + np.arange(1, j + 1)) * h, end.q[1 : j + 1], end.p[1 : j + 1])
+            self.check_penetration(end.q[1 : j + 1], t0 + (k + 1) * h, k + 1)
+            start = (t0 + (k + j) * h, end.q[j], end.p[j])
+            q, p = self.through_step(start, t0 + (k + j + 1) * h, end, k + j)
+            k += j + 1
+            piece = max(FIRST_PIECE, 2 * j)
+        return k
+
+    def time_steps(self, k: int, t0: float, n_steps: int, until_release: bool):
+        """Steps with contact forces from the last row to grid node k + 1 and on.
+
+        Returns (grid index reached, whether the contacts released): with
+        ``until_release``, the steps end after two in a row without contact force.
+        """
+        from .time_stepping import ContactStepper
+
+        if self._stepper is None:
+            self._stepper = ContactStepper(self.system, self.integrator.method.tables, self.prm)
+            self._duals = np.ones(self._stepper.pairs)
+        stepper, h = self._stepper, self.h
+        t, q, p = self.last()
+        free = 0
+        while k < n_steps:
+            t_next = t0 + (k + 1) * h
+            tau = t_next - t
+            guess = self._guess(q, p, t, tau)
+            result = stepper.step(t, tau, q, p, guess, self._duals)
+            if not result.converged:
+                raise _Stop(
+                    RunStatus.NO_CONVERGENCE,
+                    f"step {k} (t = {t:.6g}): the contact step's interior-point iteration did not "
+                    f"converge in {result.iterations} iterations (complementarity "
+                    f"{result.complementarity:.3g}); the states before are kept",
+                    k, t,
+                )  # fmt: skip
+            self._duals = result.duals
+            self.forces.append(
+                (t, result.normal, result.tangential, result.iterations, result.complementarity)
+            )
+            q = result.q
+            p = self._velocity_law(t_next, q, result.p, result.normal * tau, result.sticking)
+            self.rows(t_next, q, p)
+            t, k = t_next, k + 1
+            free = free + 1 if np.all(result.normal * tau <= RELEASED_IMPULSE) else 0
+            if until_release and free >= 2:
+                return k, True
+        return k, False
+
+    def _velocity_law(self, t: float, q, p, impulses, sticking) -> NDArray[np.float64]:
+        r"""The impact law at the velocity level for the contacts that pushed in this step.
+
+        A position-level step leaves the normal velocity of a contact that
+        closed during it unchanged in size (it reverses: p_{k+1} = -p_k for a
+        ball resting on the floor); Newton's law :math:`u^+ = -e\,u^-` applied
+        at the step's end, where :math:`u < 0`, damps it as the contact's
+        restitution says (Moreau's sweeping process with restitution). Likewise
+        the slip of a contact that stuck during the step (its mean slip zero) is
+        stopped at the end (:func:`.impact.stop_slip`).
+        """
+        for j, impulse_j in enumerate(impulses):
+            if impulse_j <= RELEASED_IMPULSE:
+                continue
+            v = self.system.inverse_legendre(q, p, t, self.params)
+            if self.functions.gradient(j, t, q, self.prm) @ v < 0.0:
+                p, impact = impulse(self.system, self.functions, j, t, q, p, self.prm)
+                if impact.normal_impulse > RELEASED_IMPULSE:
+                    self.impacts.append(impact)
+            elif sticking[j]:
+                p = stop_slip(self.system, self.functions, j, t, q, p, self.prm)
+        return p
+
+    def _guess(self, q, p, t, tau):
+        """Control points of a straight motion at the current velocity."""
+        v = self.system.inverse_legendre(q, p, t, self.params)
+        d = self.integrator.method.tables.d
+        return d[:, None] * (tau * v)[None, :]
 
     def rows(self, t, q, p) -> None:
+        if np.size(t) == 0:
+            return
         self._t.append(np.atleast_1d(np.asarray(t, dtype=float)))
         self._q.append(np.atleast_2d(q))
         self._p.append(np.atleast_2d(p))
@@ -233,6 +351,21 @@ class _Run:
             status=status,
             message=message,
             impacts=list(self.impacts),
+            contact_forces=self._contact_forces(),
+        )
+
+    def _contact_forces(self):
+        if not self.forces:
+            return None
+        from .time_stepping import ContactForces
+
+        t, normal, tangential, iterations, complementarity = zip(*self.forces, strict=True)
+        return ContactForces(
+            t=np.array(t),
+            normal=np.array(normal),
+            tangential=np.array(tangential),
+            iterations=np.array(iterations),
+            complementarity=np.array(complementarity),
         )
 
     def stopped(self, stop: _Stop, on_failure: str):

@@ -33,7 +33,7 @@ import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 
-__all__ = ["ContactFunctions", "Impact", "impulse"]
+__all__ = ["ContactFunctions", "Impact", "impulse", "stop_slip"]
 
 _NEWTON_ITERATIONS = 30
 _DIRECTION_ITERATIONS = 50
@@ -161,6 +161,21 @@ def impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) ->
         energy_lost=float(H[0] - H[1]),
     )
     return p_plus, impact
+
+
+def stop_slip(system, functions: ContactFunctions, j: int, t: float, q, p, prm):
+    r"""The momentum that stops the slip of contact j, the normal velocity kept.
+
+    :math:`L_v(v^+) = p + T^{\mathsf T}\Lambda_t` with :math:`T v^+ + w_0 = 0`: the
+    tangential impulse of a contact that sticks (time-stepping applies it at the end
+    of a step in which the contact stuck, so that the step's end velocity is the
+    sticking one).
+    """
+    rows, w0 = functions.slip_rows(j, t, q, prm)
+    params = dict(zip(system.params, prm, strict=True))
+    v = system.inverse_legendre(q, p, t, params)
+    _, lam = _solve(system, t, q, p, v, prm, rows, rows, -w0)
+    return p + rows.T @ lam
 
 
 def _solve(system, t, q, p, v0, prm, D, C, targets) -> tuple[NDArray, NDArray]:
