@@ -70,12 +70,23 @@ def test_accumulating_impacts_stop_before_the_zeno_time_with_the_states_kept():
 
 def test_elastic_impacts_keep_the_energy():
     integrator = gvi.Integrator(_ball(1.0), gvi.Galerkin(3))
-    traj = integrator.integrate([1.0], [0.0], h=1e-2, n_steps=20_000)
-    assert len(traj.impacts) == 221
+    traj = integrator.integrate([1.0], [0.0], h=1e-2, n_steps=10_000)
+    assert len(traj.impacts) == 111
     assert all(i.energy_lost == 0.0 for i in traj.impacts)
     error = np.abs(traj.energy() / G - 1.0)
-    # round-off per impact, a few ulp: 221 impacts stay below 1e-13 (measured 7.6e-15)
+    # round-off per impact: 111 impacts stay below 1e-13 (measured 4e-15; it grows by
+    # about 4e-17 per impact, see the contact how-to)
     assert error.max() < 1e-13
+
+
+@pytest.mark.slow
+def test_elastic_impacts_ten_thousand_times():
+    integrator = gvi.Integrator(_ball(1.0), gvi.Galerkin(3))
+    traj = integrator.integrate([1.0], [0.0], h=1e-2, n_steps=903_000)
+    assert len(traj.impacts) == 9999
+    # measured 4.2e-13: round-off that grows by about 4e-17 per impact (a drift of
+    # a fraction of an ulp per impact, from the cut steps; see the contact how-to)
+    assert np.abs(traj.energy() / G - 1.0).max() < 1e-12
 
 
 def _wall_pendulum(e: float):
@@ -229,7 +240,7 @@ def _assert_interior_point_statistics(forces):
 def test_the_ball_comes_to_rest_after_the_zeno_time():
     e = 0.8
     integrator = gvi.Integrator(_ball(e), gvi.Galerkin(2))
-    traj = integrator.integrate([1.0], [0.0], h=1e-3, n_steps=6000)
+    traj = integrator.integrate([1.0], [0.0], h=2e-3, n_steps=2200)
     assert traj.success
     zeno = np.sqrt(2 / G) * (1 + e) / (1 - e)
     assert traj.q[:, 0].min() >= -1e-12  # no penetration, before or after
