@@ -307,11 +307,26 @@ def test_a_block_sliding_up_to_friction_stops_at_the_closed_form_distance(h):
     _assert_interior_point_statistics(traj.contact_forces)
 
 
-def test_persistent_contact_with_friction_in_space_is_not_there_yet():
+@pytest.mark.parametrize("direction", [0.0, 0.7, 2.0])
+def test_a_puck_on_flat_ground_stops_on_a_straight_line(direction):
+    # the exact cone: a polyhedral one would bend the path towards its edges
     x, z, vx, vz = sp.symbols("x z vx vz")
+    mu, v0, h = 0.4, 2.0, 0.01
     L = (vx**2 + vy**2 + vz**2) / 2 - g * y
-    contact = gvi.Contact(y, friction=0.5, slip=[vx, vz])
+    contact = gvi.Contact(y, friction=mu, slip=[vx, vz])
     system = gvi.LagrangianSystem(L, [x, y, z], [vx, vy, vz], params={g: G}, contacts=[contact])
     integrator = gvi.Integrator(system, gvi.Galerkin(2))
-    with pytest.raises(NotImplementedError, match="second-order cone"):
-        integrator.integrate([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], h=0.01, n_steps=10)
+    unit = np.array([np.cos(direction), 0.0, np.sin(direction)])
+    traj = integrator.integrate([0.0, 0.0, 0.0], v0 * unit, h=h, t_span=(0.0, 1.0))
+    distance = v0**2 / (2 * mu * G)
+    along = traj.q[:, [0, 2]] @ unit[[0, 2]]
+    across = traj.q[:, [0, 2]] @ np.array([-unit[2], unit[0]])
+    assert np.abs(across).max() < 1e-13 and np.abs(traj.q[:, 1]).max() < 1e-13
+    assert 0.0 <= distance - along[-1] <= mu * G * h**2 / 2 + 1e-14
+    assert np.abs(traj.p[-1]).max() == 0.0
+    forces = traj.contact_forces
+    sliding = forces.t < v0 / (mu * G) - h
+    # kinetic friction mu m g against the motion, in the cone's direction exactly
+    expected = np.tile(-mu * G * unit[[0, 2]], (int(sliding.sum()), 1))
+    np.testing.assert_allclose(forces.tangential[sliding, 0], expected, rtol=1e-10, atol=1e-12)
+    _assert_interior_point_statistics(forces)

@@ -182,7 +182,7 @@ class _Run:
 
         if self._stepper is None:
             self._stepper = ContactStepper(self.system, self.integrator.method.tables, self.prm)
-            self._duals = np.ones(self._stepper.pairs)
+            self._duals = np.ones(self._stepper.size)
         stepper, h = self._stepper, self.h
         t, q, p = self.last()
         free = 0

@@ -19,26 +19,26 @@ update :math:`p_{k+1} = G^s` hold with them, and are complemented by
 
     0 \le \varphi_c(q_{k+1}) \perp \lambda_c \ge 0,
 
-and, for friction in the plane (one slip velocity :math:`w`, mean
-:math:`\bar w = \sum_i b_i w(Q_i, V_i)` over the step), by Coulomb's law as
-maximum dissipation, exact in one dimension (the cone is an interval):
-:math:`\beta = \beta^+ - \beta^-` with
+and, with friction (slip velocities :math:`w`, one in a plane, two in space;
+their mean :math:`\bar w = \sum_i b_i w(Q_i, V_i)` over the step), by Coulomb's
+law as maximum dissipation in the exact friction cone: with :math:`\zeta` the
+slip speed,
 
 .. math::
 
-    0 \le \bar w + \zeta \perp \beta^+ \ge 0,\quad
-    0 \le -\bar w + \zeta \perp \beta^- \ge 0,\quad
-    0 \le \mu\lambda - \beta^+ - \beta^- \perp \zeta \ge 0
+    \mathcal K \ni (\mu\lambda_c, \beta_c) \perp (\zeta_c, \bar w_c) \in \mathcal K,
+    \qquad \mathcal K = \{(a, b) : a \ge \|b\|\},
 
-(:math:`\zeta` is the slip speed: sticking :math:`\bar w = 0` inside the cone,
-sliding on its edge against :math:`\bar w`). With slacks :math:`z` for the
-left-hand sides and duals :math:`y` for the right, the step solves
-:math:`F(x, y) = 0`, :math:`z = c(x, y)`, :math:`z \circ y = \kappa` for
-:math:`\kappa \to 0` by a primal–dual interior-point method with Mehrotra's
-predictor–corrector and the fraction-to-boundary rule (as Dojo does), with
-the exact Jacobians of the stage equations and of the gaps and slips.
+the second-order cone (an interval in the plane): sticking :math:`\bar w = 0`
+inside the cone, sliding on its edge against :math:`\bar w`. With slacks
+:math:`z` (the gaps, :math:`(\zeta, \bar w)`) and duals :math:`y`
+(:math:`\lambda`, :math:`(\mu\lambda, \beta)`), the step solves the stage
+equations, the slacks' definitions and :math:`z \circ y = \kappa e` (the Jordan
+product of the cones) for :math:`\kappa \to 0` by a primal–dual interior-point
+method with Mehrotra's predictor–corrector and the fraction-to-boundary rule
+(as Dojo does), with the exact Jacobians of the stage equations, the gaps and
+the slips.
 
-Spatial friction (two slip velocities, a second-order cone) is not here yet.
 """
 
 from __future__ import annotations
@@ -69,8 +69,11 @@ class ContactForces:
     ----------
     t : ndarray, shape (k,)
         The steps' start times.
-    normal, tangential : ndarray, shape (k, contacts)
-        :math:`\lambda_c` and :math:`\beta_c` (0 without friction).
+    normal : ndarray, shape (k, contacts)
+        :math:`\lambda_c`.
+    tangential : ndarray, shape (k, contacts, d)
+        :math:`\beta_c` (d = 2 when a contact has two slip velocities; zeros
+        without friction).
     iterations : ndarray, shape (k,)
         Interior-point iterations of each step.
     complementarity : ndarray, shape (k,)
@@ -102,10 +105,15 @@ class StepResult:
 
 @dataclass(frozen=True)
 class ContactStep:
-    """Per contact: where its unknowns sit in the duals (and slacks) of a step."""
+    """Per contact: where its unknowns sit in the duals y and slacks z of a step.
+
+    ``normal`` indexes :math:`\\lambda` (y) and the gap (z); ``cone`` is the slice
+    of the friction cone's block, :math:`(\\mu\\lambda, \\beta)` in y and
+    :math:`(\\zeta, \\bar w)` in z, or None without friction.
+    """
 
     normal: int
-    friction: tuple[int, int, int] | None  # beta+, beta-, zeta
+    cone: slice | None
 
 
 class ContactStepper:
@@ -119,7 +127,7 @@ class ContactStepper:
         self.layout: list[ContactStep] = []
         self._gap, self._grad, self._hess = [], [], []
         self._slip = []
-        pairs = 0
+        size = 0
         for contact in system.contacts:
             gap = contact.gap
             self._gap.append(sp.lambdify(args, gap, "numpy"))
@@ -127,24 +135,23 @@ class ContactStepper:
             hess = [[sp.diff(gap, a, b) for b in system.q] for a in system.q]
             self._hess.append(sp.lambdify(args, hess, "numpy"))
             if contact.friction > 0.0:
-                if len(contact.slip) != 1:
-                    raise NotImplementedError(
-                        f"contact (gap {gap}): persistent contact with friction in space (two "
-                        "slip velocities, a second-order cone) is not available yet"
-                    )
-                (w,) = contact.slip
-                w_q = [sp.diff(w, a) for a in system.q]
-                w_v = [sp.diff(w, a) for a in system.v]
-                w_vq = [[sp.diff(w, b, a) for a in system.q] for b in system.v]
+                w = list(contact.slip)
+                w_q = [[sp.diff(wi, a) for a in system.q] for wi in w]
+                w_v = [[sp.diff(wi, a) for a in system.v] for wi in w]
+                w_vq = [[[sp.diff(wi, b, a) for a in system.q] for b in system.v] for wi in w]
                 self._slip.append(tuple(sp.lambdify(args, e, "numpy") for e in (w, w_q, w_v, w_vq)))
-                self.layout.append(ContactStep(pairs, (pairs + 1, pairs + 2, pairs + 3)))
-                pairs += 4
+                k = len(w)
+                self.layout.append(ContactStep(size, slice(size + 1, size + 2 + k)))
+                size += 2 + k
             else:
                 self._slip.append(None)
-                self.layout.append(ContactStep(pairs, None))
-                pairs += 1
-        self.pairs = pairs
+                self.layout.append(ContactStep(size, None))
+                size += 1
+        self.size = size
         self.n = n
+        self.tangential_size = max(
+            (len(c.slip) for c in system.contacts if c.friction > 0.0), default=1
+        )
 
     # ----------------------------------------------------------- evaluation
     def _at(self, f, t, q, v):
@@ -156,11 +163,12 @@ class ContactStepper:
             [self._at(f, ti, Qi, Vi).reshape(shape) for ti, Qi, Vi in zip(t, Q, V, strict=True)]
         )
 
-    def _equations(self, t0, h, qk, pk, x, y):
-        """Residuals F (stage equations with the contact forces), c (the slacks' values)
-        and their Jacobians in (x, y)."""
+    def _equations(self, t0, h, qk, pk, x, y, z):
+        """The residuals and Jacobians of a step: the stage equations with the contact
+        forces F(x, y), the slacks' definitions E(x, y, z); and p_{k+1}, C."""
         system, tb, n = self.system, self.tables, self.n
         s = tb.d.size - 1
+        m = self.size
         C = np.vstack([np.zeros((1, n)), x.reshape(s, n)])
         G, H = numpy_backend.discrete_hessian(system, tb, t0, h, qk, C, self.prm)
         t, Q, V = numpy_backend._points(tb, t0, h, qk, C)
@@ -168,114 +176,157 @@ class ContactStepper:
         F = G[:s].copy()
         F[0] += pk
         Fx = H[:s, :, 1:, :].reshape(s * n, s * n).copy()
-        Fy = np.zeros((s * n, self.pairs))
-        c = np.zeros(self.pairs)
-        cx = np.zeros((self.pairs, s * n))
-        cy = np.zeros((self.pairs, self.pairs))
-        end = qk + C[s]
+        Fy = np.zeros((s * n, m))
+        E = z.copy()
+        Ex, Ey, Ez = np.zeros((m, s * n)), np.zeros((m, m)), np.eye(m)
+        end, t_end = qk + C[s], t0 + h
         forces_end = np.zeros(n)
-        zeros_v = np.zeros(n)
+        weights = h * b[:, None] * Phi  # (r, s+1): a force at the points, into the nodes
         for j, layout in enumerate(self.layout):
-            lam = y[layout.normal]
+            i = layout.normal
+            lam = y[i]
             grads = self._each(self._grad[j], t, Q, V, (n,))
             hess = self._each(self._hess[j], t, Q, V, (n, n))
-            # the normal force at every quadrature point, weighted into every node
-            weights = h * b[:, None] * Phi  # (r, s+1)
             node_force = weights.T @ grads  # (s+1, n)
             F += lam * node_force[:s]
             forces_end += lam * node_force[s]
-            Fy[:, layout.normal] = node_force[:s].ravel()
+            Fy[:, i] = node_force[:s].ravel()
             curvature = np.einsum("iv,iu,iab->vaub", weights, Phi, hess) * lam
             Fx += curvature[:s, :, 1:, :].reshape(s * n, s * n)
-            # the gap at the step's end: q_{k+1} = q_k + C^s
-            t_end = t0 + h
-            c[layout.normal] = float(self._at(self._gap[j], t_end, end, zeros_v))
-            cx[layout.normal, (s - 1) * n :] = self._at(self._grad[j], t_end, end, zeros_v)
-            if layout.friction is None:
+            # the gap at the step's end, q_{k+1} = q_k + C^s
+            E[i] -= float(self._at(self._gap[j], t_end, end, end * 0))
+            Ex[i, (s - 1) * n :] = -self._at(self._grad[j], t_end, end, end * 0)
+            if layout.cone is None:
                 continue
-            plus, minus, zeta = layout.friction
+            first = layout.cone.start
+            k = layout.cone.stop - first - 1
             mu = system.contacts[j].friction
             w_fn, wq_fn, wv_fn, wvq_fn = self._slip[j]
-            w = self._each(w_fn, t, Q, V)
-            wq = self._each(wq_fn, t, Q, V, (n,))
-            wv = self._each(wv_fn, t, Q, V, (n,))
-            wvq = self._each(wvq_fn, t, Q, V, (n, n))
-            beta = y[plus] - y[minus]
-            tangent_force = weights.T @ wv  # (s+1, n): T^T at the points, into the nodes
-            F += beta * tangent_force[:s]
-            forces_end += beta * tangent_force[s]
-            Fy[:, plus] = tangent_force[:s].ravel()
-            Fy[:, minus] = -tangent_force[:s].ravel()
-            bend = np.einsum("iv,iu,iab->vaub", weights, Phi, wvq) * beta
+            w = self._each(w_fn, t, Q, V, (k,))
+            wq = self._each(wq_fn, t, Q, V, (k, n))
+            wv = self._each(wv_fn, t, Q, V, (k, n))
+            wvq = self._each(wvq_fn, t, Q, V, (k, n, n))
+            beta = y[first + 1 : first + 1 + k]
+            tangent_force = np.einsum("iv,ika->kva", weights, wv)  # (k, s+1, n)
+            F += np.einsum("k,kva->va", beta, tangent_force[:, :s])
+            forces_end += beta @ tangent_force[:, s]
+            Fy[:, first + 1 : first + 1 + k] = tangent_force[:, :s].reshape(k, -1).T
+            bend = np.einsum("iv,iu,ikab,k->vaub", weights, Phi, wvq, beta)
             Fx += bend[:s, :, 1:, :].reshape(s * n, s * n)
+            # the cone's scalars: y0 = mu lambda (defined by E), z0 = zeta (free)
+            E[first] = y[first] - mu * lam
+            Ez[first, first] = 0.0
+            Ey[first, first], Ey[first, i] = 1.0, -mu
             # the mean slip over the step and its derivative in the control points
-            w_mean = float(b @ w)
-            dw = np.einsum("i,iu,ia->ua", b, Phi, wq) + np.einsum("i,iu,ia->ua", b, D, wv) / h
-            dw = dw[1:].ravel()
-            c[plus], c[minus] = w_mean + y[zeta], -w_mean + y[zeta]
-            cx[plus], cx[minus] = dw, -dw
-            cy[plus, zeta] = cy[minus, zeta] = 1.0
-            c[zeta] = mu * lam - y[plus] - y[minus]
-            cy[zeta, layout.normal] = mu
-            cy[zeta, plus] = cy[zeta, minus] = -1.0
-        return F.ravel(), Fx, Fy, c, cx, cy, G[s] + forces_end, C
+            w_mean = b @ w
+            dw = np.einsum("i,iu,ika->kua", b, Phi, wq) + np.einsum("i,iu,ika->kua", b, D, wv) / h
+            E[first + 1 : first + 1 + k] -= w_mean
+            Ex[first + 1 : first + 1 + k] = -dw[:, 1:].reshape(k, -1)
+        return F.ravel(), Fx, Fy, E, Ex, Ey, Ez, G[s] + forces_end, C
+
+    def _jordan(self, z, y) -> NDArray[np.float64]:
+        """z o y blockwise: products on the gaps, the cones' Jordan product."""
+        out = z * y
+        for layout in self.layout:
+            if layout.cone is not None:
+                zc, yc = z[layout.cone], y[layout.cone]
+                out[layout.cone] = np.concatenate([[zc @ yc], zc[0] * yc[1:] + yc[0] * zc[1:]])
+        return out
+
+    def _arrow(self, v) -> NDArray[np.float64]:
+        """The matrix of u -> v o u (diagonal on the gaps, arrow matrices on the cones)."""
+        A = np.diag(v)
+        for layout in self.layout:
+            if layout.cone is not None:
+                vc = v[layout.cone]
+                block = vc[0] * np.eye(vc.size)
+                block[0, 1:] = block[1:, 0] = vc[1:]
+                A[layout.cone, layout.cone] = block
+        return A
+
+    def _identity(self) -> NDArray[np.float64]:
+        """The Jordan identity e: ones on the gaps, (1, 0, ...) on each cone."""
+        e = np.ones(self.size)
+        for layout in self.layout:
+            if layout.cone is not None:
+                e[layout.cone.start + 1 : layout.cone.stop] = 0.0
+        return e
+
+    def _blocks(self) -> int:
+        return len(self.layout) + sum(layout.cone is not None for layout in self.layout)
+
+    def _to_boundary(self, v, dv, tau: float) -> float:
+        """Largest alpha <= 1 keeping v + alpha dv inside every orthant and cone, by tau."""
+        alpha = 1.0
+        for layout in self.layout:
+            alpha = min(alpha, _orthant_step(v[layout.normal], dv[layout.normal]))
+            if layout.cone is not None:
+                alpha = min(alpha, _cone_step(v[layout.cone], dv[layout.cone]))
+        return min(1.0, tau * alpha)
+
+    def _interior(self, v, floor: float) -> NDArray[np.float64]:
+        """``v`` moved strictly inside its orthants and cones."""
+        v = v.copy()
+        for layout in self.layout:
+            v[layout.normal] = max(v[layout.normal], floor)
+            if layout.cone is not None:
+                c = v[layout.cone]
+                c[0] = max(c[0], np.linalg.norm(c[1:]) + floor)
+                v[layout.cone] = c
+        return v
 
     # ---------------------------------------------------------------- solve
     def step(self, t0: float, h: float, qk, pk, guess_C, duals) -> StepResult:
         """One step of length h from (q_k, p_k): Mehrotra's predictor–corrector."""
         s = self.tables.d.size - 1
-        nx, m = s * self.n, self.pairs
+        nx, m = s * self.n, self.size
         x = np.asarray(guess_C, dtype=float)[1:].ravel().copy()
-        y = np.maximum(np.asarray(duals, dtype=float), 1e-6)
-        F, Fx, Fy, c, cx, cy, p_new, C = self._equations(t0, h, qk, pk, x, y)
-        z = np.maximum(c, 1e-6)
+        y = self._interior(np.asarray(duals, dtype=float), 1e-6)
+        z0 = np.zeros(m)
+        F, Fx, Fy, E, Ex, Ey, Ez, p_new, C = self._equations(t0, h, qk, pk, x, y, z0)
+        z = self._interior(-E, 1e-6)  # E(z = 0) = -(the slacks' values)
+        e = self._identity()
+        blocks = self._blocks()
         scale = 1.0 + float(np.max(np.abs(pk)))
         iterations, converged = 0, False
         while iterations < MAX_ITERATIONS:
             iterations += 1
-            K = np.zeros((nx + 2 * m, nx + 2 * m))
-            K[:nx, :nx], K[:nx, nx : nx + m] = Fx, Fy
-            K[nx : nx + m, :nx], K[nx : nx + m, nx : nx + m] = -cx, -cy
-            K[nx : nx + m, nx + m :] = np.eye(m)
-            K[nx + m :, nx : nx + m] = np.diag(z)
-            K[nx + m :, nx + m :] = np.diag(y)
-            mu = float(z @ y) / m
-            r1, r2 = F, z - c
-            # predictor: the affine-scaling direction (kappa = 0)
-            affine = np.linalg.solve(K, -np.concatenate([r1, r2, z * y]))
-            dy_a, dz_a = affine[nx : nx + m], affine[nx + m :]
-            alpha = _to_boundary(np.concatenate([y, z]), np.concatenate([dy_a, dz_a]), 1.0)
-            mu_aff = float((z + alpha * dz_a) @ (y + alpha * dy_a)) / m
-            sigma = (mu_aff / mu) ** 3 if mu > 0 else 0.0
-            # corrector: centred towards sigma mu, second-order term of the predictor
-            r3 = z * y + dz_a * dy_a - sigma * mu
-            step = np.linalg.solve(K, -np.concatenate([r1, r2, r3]))
-            dx, dy, dz = step[:nx], step[nx : nx + m], step[nx + m :]
-            tau = max(0.99, 1.0 - mu)
-            alpha = _to_boundary(np.concatenate([y, z]), np.concatenate([dy, dz]), tau)
-            x, y, z = x + alpha * dx, y + alpha * dy, z + alpha * dz
-            F, Fx, Fy, c, cx, cy, p_new, C = self._equations(t0, h, qk, pk, x, y)
-            residual = max(np.max(np.abs(F)) / scale, np.max(np.abs(z - c)))
-            if residual <= RESIDUAL and float(np.max(z * y)) <= COMPLEMENTARITY:
+            F, Fx, Fy, E, Ex, Ey, Ez, p_new, C = self._equations(t0, h, qk, pk, x, y, z)
+            gap = float(z @ y) / blocks
+            residual = max(np.max(np.abs(F)) / scale, np.max(np.abs(E)))
+            complementarity = float(np.max(np.abs(self._jordan(z, y))))
+            if residual <= RESIDUAL and complementarity <= COMPLEMENTARITY:
                 converged = True
                 break
+            K = np.zeros((nx + 2 * m, nx + 2 * m))
+            K[:nx, :nx], K[:nx, nx : nx + m] = Fx, Fy
+            K[nx : nx + m, :nx], K[nx : nx + m, nx : nx + m] = Ex, Ey
+            K[nx : nx + m, nx + m :] = Ez
+            K[nx + m :, nx : nx + m] = self._arrow(z)
+            K[nx + m :, nx + m :] = self._arrow(y)
+            zy = self._jordan(z, y)
+            # predictor: the affine-scaling direction (kappa = 0)
+            affine = np.linalg.solve(K, -np.concatenate([F, E, zy]))
+            dy_a, dz_a = affine[nx : nx + m], affine[nx + m :]
+            alpha = min(self._to_boundary(y, dy_a, 1.0), self._to_boundary(z, dz_a, 1.0))
+            gap_aff = float((z + alpha * dz_a) @ (y + alpha * dy_a)) / blocks
+            sigma = (gap_aff / gap) ** 3 if gap > 0 else 0.0
+            # corrector: centred towards sigma mu, the predictor's second-order term
+            r3 = zy + self._jordan(dz_a, dy_a) - sigma * gap * e
+            step = np.linalg.solve(K, -np.concatenate([F, E, r3]))
+            dx, dy, dz = step[:nx], step[nx : nx + m], step[nx + m :]
+            tau = max(0.99, 1.0 - gap)
+            alpha = min(self._to_boundary(y, dy, tau), self._to_boundary(z, dz, tau))
+            x, y, z = x + alpha * dx, y + alpha * dy, z + alpha * dz
         normal = np.array([y[layout.normal] for layout in self.layout])
-        tangential = np.array(
-            [
-                y[layout.friction[0]] - y[layout.friction[1]] if layout.friction else 0.0
-                for layout in self.layout
-            ]
-        )
-        # a frictional contact sticks when its slip speed is zero (zeta's impulse below
-        # round-off): its force lies inside the cone
-        sticking = np.array(
-            [
-                layout.friction is not None
-                and y[layout.normal] * h > RESIDUAL
-                and y[layout.friction[2]] * h <= RESIDUAL
-                for layout in self.layout
-            ]
-        )
+        tangential = np.zeros((len(self.layout), self.tangential_size))
+        sticking = np.zeros(len(self.layout), dtype=bool)
+        for j, layout in enumerate(self.layout):
+            if layout.cone is not None:
+                beta = y[layout.cone][1:]
+                tangential[j, : beta.size] = beta
+                # the slip speed zeta is zero (to round-off): the force lies inside the cone
+                sticking[j] = normal[j] * h > RESIDUAL and z[layout.cone][0] * h <= RESIDUAL
         return StepResult(
             q=qk + C[s],
             p=p_new,
@@ -285,14 +336,28 @@ class ContactStepper:
             duals=y,
             sticking=sticking,
             iterations=iterations,
-            complementarity=float(np.max(z * y)),
+            complementarity=float(np.max(np.abs(self._jordan(z, y)))),
             converged=converged,
         )
 
 
-def _to_boundary(v: NDArray, dv: NDArray, tau: float) -> float:
-    """Largest alpha in (0, 1] with v + alpha dv >= (1 - tau) v (fraction to the boundary)."""
-    shrinking = dv < 0
-    if not shrinking.any():
-        return 1.0
-    return float(min(1.0, np.min(-tau * v[shrinking] / dv[shrinking])))
+def _orthant_step(v: float, dv: float) -> float:
+    return -v / dv if dv < 0 else np.inf
+
+
+def _cone_step(v: NDArray, dv: NDArray) -> float:
+    """Largest alpha with v + alpha dv in the second-order cone {a >= |b|} (v inside)."""
+    # (v0 + a dv0)^2 - |v1 + a dv1|^2 = 0 and v0 + a dv0 = 0: the smallest positive root
+    a = dv[0] ** 2 - dv[1:] @ dv[1:]
+    b = 2 * (v[0] * dv[0] - v[1:] @ dv[1:])
+    c = v[0] ** 2 - v[1:] @ v[1:]
+    roots = [-v[0] / dv[0]] if dv[0] < 0 else []
+    if abs(a) > 1e-300:
+        disc = b * b - 4 * a * c
+        if disc >= 0:
+            sq = np.sqrt(disc)
+            roots += [(-b - sq) / (2 * a), (-b + sq) / (2 * a)]
+    elif b < 0:
+        roots.append(-c / b)
+    positive = [r for r in roots if r > 0]
+    return min(positive) if positive else np.inf
