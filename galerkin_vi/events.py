@@ -286,6 +286,8 @@ def _exact_time(g, prm, exact_step, k, t, guess):
     x0 = guess - tk
     x1 = x0 * (1.0 + 1e-6) if x0 != 0.0 else 1e-8 * (t[k + 1] - tk)
     f0, q0, v0 = residual(x0)
+    if f0 == 0.0:  # the interpolant's root is one of the method's too
+        return tk + x0, q0, v0
     f1, q1, v1 = residual(x1)
     for _ in range(_SECANT_ITERATIONS):
         if f1 == f0 or f1 == 0.0:

@@ -330,3 +330,39 @@ def test_a_puck_on_flat_ground_stops_on_a_straight_line(direction):
     expected = np.tile(-mu * G * unit[[0, 2]], (int(sliding.sum()), 1))
     np.testing.assert_allclose(forces.tangential[sliding, 0], expected, rtol=1e-10, atol=1e-12)
     _assert_interior_point_statistics(forces)
+
+
+def test_newtons_cradle_answers_sequentially():
+    x1, x2, x3, v1, v2, v3 = sp.symbols("x1 x2 x3 v1 v2 v3")
+    touching = [gvi.Contact(x2 - x1 - 1, restitution=1.0), gvi.Contact(x3 - x2 - 1, 1.0)]
+    system = gvi.LagrangianSystem((v1**2 + v2**2 + v3**2) / 2, [x1, x2, x3], [v1, v2, v3],
+                                  contacts=touching)  # fmt: skip
+    integrator = gvi.Integrator(system, gvi.Galerkin(2))
+    # balls of diameter 1; the second and third touch, the first comes at speed 1
+    traj = integrator.integrate([-1.0, 1.0, 2.0], [1.0, 0.0, 0.0], h=0.1, n_steps=25)
+    # the impacts one after the other at the same instant: (0, 0, v), not (-v/3, 2v/3, 2v/3)
+    assert [(i.t, i.contact) for i in traj.impacts] == [(1.0, 0), (1.0, 1)]
+    np.testing.assert_array_equal(traj.p[-1], [0.0, 0.0, 1.0])
+    np.testing.assert_allclose(traj.q[-1], [0.0, 1.0, 3.5], atol=1e-15)
+    assert np.ptp(traj.energy()) == 0.0
+
+
+def test_a_disk_slips_then_rolls_at_two_thirds_of_its_speed():
+    x, th, vx, w, R, mu = *sp.symbols("x theta vx w"), 0.5, 0.2
+    inertia = R**2 / 2  # a uniform disk of unit mass
+    L = (vx**2 + vy**2) / 2 + inertia * w**2 / 2 - g * y
+    contact = gvi.Contact(y - R, friction=mu, slip=[vx + R * w])  # the contact point's speed
+    system = gvi.LagrangianSystem(L, [x, y, th], [vx, vy, w], params={g: G}, contacts=[contact])
+    integrator = gvi.Integrator(system, gvi.Galerkin(2))
+    v0, h = 3.0, 0.01
+    traj = integrator.integrate([0.0, R, 0.0], [v0, 0.0, 0.0], h=h, t_span=(0.0, 1.5))
+    rolling_from = v0 / (3 * mu * G)  # kinetic friction until v + R w = 0
+    sliding = traj.t < rolling_from - h
+    # kinetic friction mu m g (to the interior point's tolerance)
+    np.testing.assert_allclose(traj.p[sliding, 0], v0 - mu * G * traj.t[sliding], rtol=1e-9)
+    rolling = traj.t > rolling_from + 2 * h  # the switch takes the step it falls in and one more
+    # friction keeps the angular momentum about the contact point: v = v0 / (1 + I/(m R^2))
+    np.testing.assert_allclose(traj.p[rolling, 0], 2 * v0 / 3, rtol=1e-12)
+    np.testing.assert_allclose(traj.p[rolling, 2] / inertia, -2 * v0 / (3 * R), rtol=1e-12)
+    np.testing.assert_allclose(traj.contact_forces.normal[:, 0], G, rtol=1e-10)
+    _assert_interior_point_statistics(traj.contact_forces)

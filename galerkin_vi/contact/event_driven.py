@@ -274,14 +274,22 @@ class _Run:
         t_hit = float(end.t[-1])
         for _ in range(MAX_IMPACTS_PER_STEP):
             j = self._which(end)
-            if t_hit - t_s <= 4 * np.finfo(float).eps * max(1.0, abs(t_hit)):
-                raise self._persists(j, t_hit, step, "the gap closes again at once")
-            q_hit, p_minus = self.integrator.step(q_s, p_s, t_hit - t_s, t0=t_s, params=self.params)
+            # a gap closing at once: another contact touching already (Newton's cradle), hit
+            # at the same instant if it approaches, else a contact that persists
+            at_once = t_hit - t_s <= 4 * np.finfo(float).eps * max(1.0, abs(t_hit))
+            if at_once:
+                q_hit, p_minus = q_s, p_s
+            else:
+                q_hit, p_minus = self.integrator.step(
+                    q_s, p_s, t_hit - t_s, t0=t_s, params=self.params
+                )
             try:
                 p_plus, impact = impulse(
                     self.system, self.functions, j, t_hit, q_hit, p_minus, self.prm
                 )
             except ValueError:
+                if at_once:
+                    raise self._persists(j, t_hit, step, "the gap closes again at once") from None
                 # grazing: the gap closed with a normal velocity of round-off size
                 p_plus, impact = p_minus, None
             if impact is not None:
