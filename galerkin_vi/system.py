@@ -406,7 +406,8 @@ class LagrangianSystem:
         # sent to another process (an ensemble's worker) builds them again on first use
         state = self.__dict__.copy()
         state.pop("_evaluators", None)
-        state.pop("_event_functions", None)
+        for cached in ("_event_functions", "_contact_functions", "_contact_steppers"):
+            state.pop(cached, None)
         return state
 
     # ----------------------------------------------------------- evaluation

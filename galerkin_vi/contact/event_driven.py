@@ -85,7 +85,10 @@ def integrate_with_contacts(
     system = integrator.system
     h, n_steps, t0, _ = integrator._run_plan(h, n_steps, t_span, t0, 1)
     prm = system.parameter_vector(params)
-    functions = ContactFunctions(system)
+    # lambdified once per system (milliseconds each): kept with it, like event functions
+    functions = system.__dict__.get("_contact_functions")
+    if functions is None:
+        functions = system.__dict__["_contact_functions"] = ContactFunctions(system)
     q = integrator._state("q0", q0)
     _check_initial_gaps(system, functions, t0, q, prm)
     q, p, _ = integrator._initial_state(q, v0, p0, t0, prm, False)
@@ -181,7 +184,12 @@ class _Run:
         from .time_stepping import ContactStepper
 
         if self._stepper is None:
-            self._stepper = ContactStepper(self.system, self.integrator.method.tables, self.prm)
+            tables = self.integrator.method.tables
+            steppers = self.system.__dict__.setdefault("_contact_steppers", {})
+            if id(tables) not in steppers:
+                steppers[id(tables)] = (tables, ContactStepper(self.system, tables, self.prm))
+            self._stepper = steppers[id(tables)][1]
+            self._stepper.prm = self.prm  # the run's parameters
             self._duals = np.ones(self._stepper.size)
         stepper, h = self._stepper, self.h
         t, q, p = self.last()
