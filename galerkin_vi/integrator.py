@@ -429,13 +429,15 @@ class Integrator:
             with the states computed so far (their dense output and events
             included), ``status`` :attr:`RunStatus.INTERRUPTED` and a warning,
             whatever ``on_failure`` says.
-        contact_mode : {"auto", "event"}
+        contact_mode : {"auto", "event", "time-stepping"}
             Systems with contacts (:mod:`galerkin_vi.contact`): isolated impacts
             located and applied at the method's order, switching to a
             complementarity problem per step where a contact persists or its
             impacts accumulate and back where it releases (``"auto"``,
-            default), or isolated impacts only, stopping with status
-            ``CONTACT_PERSISTS`` where they cannot go on (``"event"``).
+            default); isolated impacts only, stopping with status
+            ``CONTACT_PERSISTS`` where they cannot go on (``"event"``); or a
+            complementarity problem in every step, impacts still cut out of
+            the steps exactly (``"time-stepping"``).
 
         Returns
         -------

@@ -59,7 +59,8 @@ class Trajectory:
         With ``integrate(..., events=...)``: per event, the times (m,) and
         the positions, velocities and momenta (m, n) of its occurrences.
     impacts : list of Impact or None
-        For a system with contacts: every impact, in time order
+        For a system with contacts: every isolated impact (located on a step,
+        in either mode), in time order
         (:class:`galerkin_vi.contact.Impact`: time, contact, normal and
         tangential impulse, stick or slide, energy lost). The rows of an
         impact appear twice, at the same time and position, with the momentum

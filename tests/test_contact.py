@@ -206,8 +206,6 @@ def test_bad_contacts_are_named():
         integrator.integrate([-0.1], [0.0], h=0.01, n_steps=3)
     with pytest.raises(NotImplementedError, match="does not take save_every"):
         integrator.integrate([1.0], [0.0], h=0.01, n_steps=3, save_every=2)
-    with pytest.raises(NotImplementedError, match="'time-stepping' from the start"):
-        integrator.integrate([1.0], [0.0], h=0.01, n_steps=3, contact_mode="time-stepping")
     with pytest.raises(ValueError, match="contact_mode must be one of"):
         integrator.integrate([1.0], [0.0], h=0.01, n_steps=3, contact_mode="soft")
     smooth = gvi.Integrator(gvi.LagrangianSystem(L, [x, y], [vx, vy]), gvi.Galerkin(1))
@@ -366,3 +364,35 @@ def test_a_disk_slips_then_rolls_at_two_thirds_of_its_speed():
     np.testing.assert_allclose(traj.p[rolling, 2] / inertia, -2 * v0 / (3 * R), rtol=1e-12)
     np.testing.assert_allclose(traj.contact_forces.normal[:, 0], G, rtol=1e-10)
     _assert_interior_point_statistics(traj.contact_forces)
+
+
+def test_time_stepping_from_the_start_cuts_its_steps_at_impacts():
+    e = 0.8
+    integrator = gvi.Integrator(_ball(e), gvi.Galerkin(2))
+    traj = integrator.integrate(
+        [1.0], [0.0], h=0.02, t_span=(0.0, 2.0), contact_mode="time-stepping"
+    )
+    # every step a complementarity problem; the impacts found inside them exactly
+    assert len(traj.contact_forces.t) >= 100 and len(traj.impacts) == 3
+    k = np.arange(1, 4)
+    t1 = np.sqrt(2 / G)
+    times = np.array([i.t for i in traj.impacts])
+    np.testing.assert_allclose(times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), atol=1e-13)
+    np.testing.assert_allclose(traj.energy()[-1], e**6 * G, rtol=1e-12)
+    _assert_interior_point_statistics(traj.contact_forces)
+
+
+def test_an_impact_while_another_contact_persists_is_cut_out_exactly():
+    # a block resting on the floor (persistent contact) with a second body falling onto
+    # a shelf: the shelf impact happens during time-stepping and is located exactly
+    a, b, va, vb = sp.symbols("a b va vb")
+    L = (va**2 + vb**2) / 2 - g * (a + b)
+    contacts = [gvi.Contact(a), gvi.Contact(b - 1, restitution=0.5)]
+    system = gvi.LagrangianSystem(L, [a, b], [va, vb], params={g: G}, contacts=contacts)
+    integrator = gvi.Integrator(system, gvi.Galerkin(2))
+    traj = integrator.integrate([0.0, 2.0], [0.0, 0.0], h=0.01, t_span=(0.0, 0.6))
+    (impact,) = traj.impacts
+    assert impact.contact == 1 and traj.contact_forces is not None
+    np.testing.assert_allclose(impact.t, np.sqrt(2 / G), atol=1e-13)
+    np.testing.assert_allclose(impact.normal_velocity, [-G * impact.t, 0.5 * G * impact.t])
+    assert np.abs(traj.q[:, 0]).max() < 1e-12  # the block stayed

@@ -47,6 +47,11 @@ FIRST_PIECE = 128
 LONGEST_PIECE = 65536
 
 
+#: a gap above OPEN_GAP * max(1, |q|) at a step's start: the contact is open there
+OPEN_GAP = 1e-9
+#: added to the gap of a contact kept apart while its first touch is looked for
+OUT_OF_REACH = 1e6
+
 #: the modes of ``integrate(contact_mode=...)``
 CONTACT_MODES = ("auto", "event", "time-stepping")
 #: normal impulses (force times step) below this leave a contact released
@@ -72,12 +77,6 @@ def integrate_with_contacts(
     if unsupported:
         raise NotImplementedError(
             f"a system with contacts does not take {', '.join(unsupported)} yet"
-        )
-    if contact_mode == "time-stepping":
-        raise NotImplementedError(
-            "contact_mode='time-stepping' from the start is not available yet: an impact "
-            "inside a time-stepping step needs a velocity-level impact law in the step; "
-            "'auto' switches to time-stepping where contact persists"
         )
     if contact_mode not in CONTACT_MODES:
         raise ValueError(f"contact_mode must be one of {CONTACT_MODES}, got {contact_mode!r}")
@@ -191,34 +190,116 @@ class _Run:
             self._stepper = steppers[id(tables)][1]
             self._stepper.prm = self.prm  # the run's parameters
             self._duals = np.ones(self._stepper.size)
-        stepper, h = self._stepper, self.h
+        h = self.h
         t, q, p = self.last()
         free = 0
         while k < n_steps:
             t_next = t0 + (k + 1) * h
-            tau = t_next - t
-            guess = self._guess(q, p, t, tau)
-            result = stepper.step(t, tau, q, p, guess, self._duals)
-            if not result.converged:
-                raise _Stop(
-                    RunStatus.NO_CONVERGENCE,
-                    f"step {k} (t = {t:.6g}): the contact step's interior-point iteration did not "
-                    f"converge in {result.iterations} iterations (complementarity "
-                    f"{result.complementarity:.3g}); the states before are kept",
-                    k, t,
-                )  # fmt: skip
-            self._duals = result.duals
-            self.forces.append(
-                (t, result.normal, result.tangential, result.iterations, result.complementarity)
-            )
-            q = result.q
-            p = self._velocity_law(t_next, q, result.p, result.normal * tau, result.sticking)
+            q, p, result, tau = self._through_stepping(t, q, p, t_next, k)
             self.rows(t_next, q, p)
             t, k = t_next, k + 1
             free = free + 1 if np.all(result.normal * tau <= RELEASED_IMPULSE) else 0
             if until_release and free >= 2:
                 return k, True
         return k, False
+
+    def _stepping(self, t: float, q, p, tau: float, k: int, excluded: int | None = None):
+        """One complementarity step of length tau (contact ``excluded`` kept apart)."""
+        stepper = self._stepper
+        stepper.offsets[:] = 0.0
+        if excluded is not None:
+            stepper.offsets[excluded] = OUT_OF_REACH  # its gap far open: no force
+        try:
+            result = stepper.step(t, tau, q, p, self._guess(q, p, t, tau), self._duals)
+        finally:
+            stepper.offsets[:] = 0.0
+        if not result.converged:
+            raise _Stop(
+                RunStatus.NO_CONVERGENCE,
+                f"step {k} (t = {t:.6g}): the contact step's interior-point iteration did not "
+                f"converge in {result.iterations} iterations (complementarity "
+                f"{result.complementarity:.3g}); the states before are kept",
+                k, t,
+            )  # fmt: skip
+        return result
+
+    def _through_stepping(self, t: float, q, p, t_next: float, k: int):
+        """Complementarity steps from t to the grid time t_next, impacts cut out.
+
+        A contact open at the step's start that pushes during it was hit inside
+        the step: the step is cut where its gap closes (found on steps with
+        that contact kept apart, by regula falsi on their length), the impact
+        law applied there, and the rest of the step taken again, as in the
+        event-driven mode. Returns (q, p, the last step's result, its length) at t_next.
+        """
+        for _ in range(MAX_IMPACTS_PER_STEP):
+            tau = t_next - t
+            result = self._stepping(t, q, p, tau, k)
+            opened = [
+                j
+                for j in range(len(self.system.contacts))
+                if self.functions.gap(j, t, q, self.prm) > OPEN_GAP * max(1.0, np.abs(q).max())
+                and result.normal[j] * tau > RELEASED_IMPULSE
+            ]
+            cut = self._first_touch(t, q, p, tau, k, opened) if opened else None
+            if cut is None:
+                break
+            alpha, j, touching = cut
+            t_hit = t + alpha
+            self.forces.append(
+                (t, touching.normal, touching.tangential, touching.iterations,
+                 touching.complementarity)
+            )  # fmt: skip
+            q_hit, p_minus = touching.q, touching.p
+            p_plus, impact = impulse(
+                self.system, self.functions, j, t_hit, q_hit, p_minus, self.prm
+            )
+            self.impacts.append(impact)
+            self.rows([t_hit, t_hit], [q_hit, q_hit], [p_minus, p_plus])
+            t, q, p = t_hit, q_hit, p_plus
+        self._duals = result.duals
+        self.forces.append(
+            (t, result.normal, result.tangential, result.iterations, result.complementarity)
+        )
+        p_end = self._velocity_law(t_next, result.q, result.p, result.normal * tau, result.sticking)
+        return result.q, p_end, result, tau
+
+    def _first_touch(self, t: float, q, p, tau: float, k: int, opened: list[int]):
+        """(alpha, contact, step result) of the earliest closing of an open contact, or None.
+
+        For each contact in ``opened``: the step length alpha in (0, tau) at whose
+        end its gap is zero, on steps that keep it apart (Illinois regula falsi);
+        None when the closing is at the step's start (a resting contact).
+        """
+        best = None
+        scale = max(1.0, float(np.abs(q).max()))
+        for j in opened:
+            g0 = self.functions.gap(j, t, q, self.prm)
+            whole = self._stepping(t, q, p, tau, k, excluded=j)
+            g1 = self.functions.gap(j, t + tau, whole.q, self.prm)
+            if not g1 < 0.0:
+                continue  # it would not have closed without its force: no impact
+            a, b, fa, fb, side = 0.0, tau, g0, g1, 0
+            result = whole
+            for _ in range(60):
+                alpha = (a * fb - b * fa) / (fb - fa)
+                result = self._stepping(t, q, p, alpha, k, excluded=j)
+                f = self.functions.gap(j, t + alpha, result.q, self.prm)
+                if abs(f) <= 4 * np.finfo(float).eps * scale or b - a <= 4e-16 * tau:
+                    break
+                if f > 0:
+                    a, fa = alpha, f
+                    fb = fb / 2 if side == 1 else fb
+                    side = 1
+                else:
+                    b, fb = alpha, f
+                    fa = fa / 2 if side == -1 else fa
+                    side = -1
+            if alpha <= 1e-12 * tau:
+                return None
+            if best is None or alpha < best[0]:
+                best = (alpha, j, result)
+        return best
 
     def _velocity_law(self, t: float, q, p, impulses, sticking) -> NDArray[np.float64]:
         r"""The impact law at the velocity level for the contacts that pushed in this step.
@@ -236,9 +317,8 @@ class _Run:
                 continue
             v = self.system.inverse_legendre(q, p, t, self.params)
             if self.functions.gradient(j, t, q, self.prm) @ v < 0.0:
-                p, impact = impulse(self.system, self.functions, j, t, q, p, self.prm)
-                if impact.normal_impulse > RELEASED_IMPULSE:
-                    self.impacts.append(impact)
+                # part of the persistent contact, not an impact of its own: not listed
+                p, _ = impulse(self.system, self.functions, j, t, q, p, self.prm)
             elif sticking[j]:
                 p = stop_slip(self.system, self.functions, j, t, q, p, self.prm)
         return p

@@ -149,6 +149,8 @@ class ContactStepper:
                 size += 1
         self.size = size
         self.n = n
+        #: added to each contact's gap (a contact kept apart: see contact.event_driven)
+        self.offsets = np.zeros(len(system.contacts))
         self.tangential_size = max(
             (len(c.slip) for c in system.contacts if c.friction > 0.0), default=1
         )
@@ -194,7 +196,7 @@ class ContactStepper:
             curvature = np.einsum("iv,iu,iab->vaub", weights, Phi, hess) * lam
             Fx += curvature[:s, :, 1:, :].reshape(s * n, s * n)
             # the gap at the step's end, q_{k+1} = q_k + C^s
-            E[i] -= float(self._at(self._gap[j], t_end, end, end * 0))
+            E[i] -= float(self._at(self._gap[j], t_end, end, end * 0)) + self.offsets[j]
             Ex[i, (s - 1) * n :] = -self._at(self._grad[j], t_end, end, end * 0)
             if layout.cone is None:
                 continue
