@@ -210,7 +210,12 @@ class _Run:
         if excluded is not None:
             stepper.offsets[excluded] = OUT_OF_REACH  # its gap far open: no force
         try:
-            result = stepper.step(t, tau, q, p, self._guess(q, p, t, tau), self._duals)
+            guess = self._guess(q, p, t, tau)
+            result = stepper.step(t, tau, q, p, guess, self._duals)
+            if not result.converged:
+                # the last step's forces may start it far from this one's (a contact that
+                # just took the load): once more from the centre of the cones
+                result = stepper.step(t, tau, q, p, guess, np.ones_like(self._duals))
         finally:
             stepper.offsets[:] = 0.0
         if not result.converged:
@@ -234,15 +239,20 @@ class _Run:
         """
         for _ in range(MAX_IMPACTS_PER_STEP):
             tau = t_next - t
-            result = self._stepping(t, q, p, tau, k)
+            try:
+                result, failure = self._stepping(t, q, p, tau, k), None
+            except _Stop as stop:  # a hard impact inside the step can defeat the iteration
+                result, failure = None, stop
             opened = [
                 j
                 for j in range(len(self.system.contacts))
                 if self.functions.gap(j, t, q, self.prm) > OPEN_GAP * max(1.0, np.abs(q).max())
-                and result.normal[j] * tau > RELEASED_IMPULSE
+                and (result is None or result.normal[j] * tau > RELEASED_IMPULSE)
             ]
             cut = self._first_touch(t, q, p, tau, k, opened) if opened else None
             if cut is None:
+                if failure is not None:
+                    raise failure
                 break
             alpha, j, touching = cut
             t_hit = t + alpha
