@@ -24,6 +24,7 @@ RUNS = {
     "choose_order.py": ([], "MethodChoice"),
     "constrained_dae.py": (["--t-final", "5", "--output", str(SMOKE_OUTPUT)], "max|g|"),
     "four_bar_linkage.py": (["--steps", "2000"], "max |g(q_k)|"),
+    "rimless_wheel.py": (["--seconds", "0.6"], "closed form: omega-"),
 }
 
 
