@@ -174,8 +174,15 @@ def _crossings(g: NDArray, direction: float, from_start: bool = True) -> NDArray
     return np.flatnonzero(mask)
 
 
-def _roots(fun: Callable, a: NDArray, b: NDArray, fa: NDArray, fb: NDArray) -> NDArray:
-    """Roots in the brackets [a, b] (f(a) f(b) <= 0) by Illinois regula falsi, vectorised."""
+def _roots(
+    fun: Callable, a: NDArray, b: NDArray, fa: NDArray, fb: NDArray, relative: float = 0.0
+) -> NDArray:
+    """Roots in the brackets [a, b] (f(a) f(b) <= 0) by Illinois regula falsi, vectorised.
+
+    To round-off, or until a bracket is ``relative`` times its first width (a start for
+    the exact secant, which converges from there in one or two method steps).
+    """
+    first = np.abs(b - a)
     a, b, fa, fb = a.copy(), b.copy(), fa.copy(), fb.copy()
     root = np.where(fb == 0.0, b, np.where(fa == 0.0, a, np.nan))
     live = np.isnan(root)
@@ -204,7 +211,7 @@ def _roots(fun: Callable, a: NDArray, b: NDArray, fa: NDArray, fb: NDArray) -> N
         side[ib] = -1
         width = np.abs(b - a)
         tiny = 4 * np.finfo(float).eps * np.maximum(np.abs(a), np.abs(b)) + 1e-300
-        done = live & (width <= tiny)
+        done = live & ((width <= tiny) | (width <= relative * first))
         root[done] = np.where(np.abs(fa[done]) < np.abs(fb[done]), a[done], b[done])
         live = np.isnan(root)
     if live.any():  # not reached in practice: the bracket's better end
@@ -266,9 +273,11 @@ def locate_events(
             qx, vx = sol.state(x)
             return g(x, qx, vx, prm)
 
-        roots = _roots(on_dense, t[k], t[k + 1], values[k], values[k + 1])
+        # an exact event's time is refined by the secant: a start to 1e-8 of the step does
+        exact = event.exact and exact_step is not None
+        roots = _roots(on_dense, t[k], t[k + 1], values[k], values[k + 1], 1e-8 if exact else 0.0)
         qe, ve = sol.state(roots)
-        if event.exact and exact_step is not None:
+        if exact:
             for i, (kk, r) in enumerate(zip(k, roots, strict=True)):
                 roots[i], qe[i], ve[i] = _exact_time(g, prm, exact_step, int(kk), t, r)
         records.append(EventRecord(roots, qe, ve, k))

@@ -378,9 +378,7 @@ class _Run:
             if at_once:
                 q_hit, p_minus = q_s, p_s
             else:
-                q_hit, p_minus = self.integrator.step(
-                    q_s, p_s, t_hit - t_s, t0=t_s, params=self.params
-                )
+                q_hit, p_minus = self.integrator._one_step(q_s, p_s, t_hit - t_s, t_s, self.prm)
             try:
                 p_plus, impact = impulse(
                     self.system, self.functions, j, t_hit, q_hit, p_minus, self.prm
