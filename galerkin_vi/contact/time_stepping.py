@@ -125,28 +125,52 @@ class ContactStepper:
         t = system.t if system.t is not None else sp.Dummy("t")
         args = (t, *system.q, *system.v, *system.params)
         self.layout: list[ContactStep] = []
-        self._gap, self._grad, self._hess = [], [], []
-        self._slip = []
+        # one function per kind for all contacts at once: a step evaluates each at the
+        # quadrature points (a call per point), not once per contact
+        gaps = [c.gap for c in system.contacts]
+        self._gaps = sp.lambdify(args, gaps, "numpy")
+        self._grads = sp.lambdify(args, [[sp.diff(g, a) for a in system.q] for g in gaps])
+        self._hessians = sp.lambdify(
+            args, [[[sp.diff(g, a, b) for b in system.q] for a in system.q] for g in gaps]
+        )
+        slips: list = []
         size = 0
         for contact in system.contacts:
-            gap = contact.gap
-            self._gap.append(sp.lambdify(args, gap, "numpy"))
-            self._grad.append(sp.lambdify(args, [sp.diff(gap, a) for a in system.q], "numpy"))
-            hess = [[sp.diff(gap, a, b) for b in system.q] for a in system.q]
-            self._hess.append(sp.lambdify(args, hess, "numpy"))
             if contact.friction > 0.0:
-                w = list(contact.slip)
-                w_q = [[sp.diff(wi, a) for a in system.q] for wi in w]
-                w_v = [[sp.diff(wi, a) for a in system.v] for wi in w]
-                w_vq = [[[sp.diff(wi, b, a) for a in system.q] for b in system.v] for wi in w]
-                self._slip.append(tuple(sp.lambdify(args, e, "numpy") for e in (w, w_q, w_v, w_vq)))
-                k = len(w)
+                k = len(contact.slip)
+                slips += list(contact.slip)
                 self.layout.append(ContactStep(size, slice(size + 1, size + 2 + k)))
                 size += 2 + k
             else:
-                self._slip.append(None)
                 self.layout.append(ContactStep(size, None))
                 size += 1
+        self._normal = np.array([layout.normal for layout in self.layout])
+        # the y (and z) index of every slip row, and (first index, normal index, mu) per cone
+        self._slip_rows = np.array(
+            [
+                i
+                for layout in self.layout
+                if layout.cone
+                for i in range(layout.cone.start + 1, layout.cone.stop)
+            ],
+            dtype=np.intp,
+        )
+        self._cones = [
+            (layout.cone.start, layout.normal, contact.friction)
+            for layout, contact in zip(self.layout, system.contacts, strict=True)
+            if layout.cone is not None
+        ]
+        self._slips = None
+        if slips:
+            self._slips = tuple(
+                sp.lambdify(args, e, "numpy")
+                for e in (
+                    slips,
+                    [[sp.diff(w, a) for a in system.q] for w in slips],
+                    [[sp.diff(w, a) for a in system.v] for w in slips],
+                    [[[sp.diff(w, b, a) for a in system.q] for b in system.v] for w in slips],
+                )
+            )
         self.size = size
         self.n = n
         #: added to each contact's gap (a contact kept apart: see contact.event_driven)
@@ -159,11 +183,9 @@ class ContactStepper:
     def _at(self, f, t, q, v):
         return np.asarray(f(t, *q, *v, *self.prm), dtype=float)
 
-    def _each(self, f, t, Q, V, shape=()) -> NDArray[np.float64]:
-        """``f`` at every quadrature point, stacked: shape (r, *shape)."""
-        return np.array(
-            [self._at(f, ti, Qi, Vi).reshape(shape) for ti, Qi, Vi in zip(t, Q, V, strict=True)]
-        )
+    def _each(self, f, t, Q, V) -> NDArray[np.float64]:
+        """``f`` (all contacts at once) at every quadrature point, stacked on axis 0."""
+        return np.array([self._at(f, ti, Qi, Vi) for ti, Qi, Vi in zip(t, Q, V, strict=True)])
 
     def _equations(self, t0, h, qk, pk, x, y, z):
         """The residuals and Jacobians of a step: the stage equations with the contact
@@ -184,46 +206,53 @@ class ContactStepper:
         end, t_end = qk + C[s], t0 + h
         forces_end = np.zeros(n)
         weights = h * b[:, None] * Phi  # (r, s+1): a force at the points, into the nodes
-        for j, layout in enumerate(self.layout):
-            i = layout.normal
-            lam = y[i]
-            grads = self._each(self._grad[j], t, Q, V, (n,))
-            hess = self._each(self._hess[j], t, Q, V, (n, n))
-            node_force = weights.T @ grads  # (s+1, n)
-            F += lam * node_force[:s]
-            forces_end += lam * node_force[s]
-            Fy[:, i] = node_force[:s].ravel()
-            curvature = np.einsum("iv,iu,iab->vaub", weights, Phi, hess) * lam
-            Fx += curvature[:s, :, 1:, :].reshape(s * n, s * n)
-            # the gap at the step's end, q_{k+1} = q_k + C^s
-            E[i] -= float(self._at(self._gap[j], t_end, end, end * 0)) + self.offsets[j]
-            Ex[i, (s - 1) * n :] = -self._at(self._grad[j], t_end, end, end * 0)
-            if layout.cone is None:
-                continue
-            first = layout.cone.start
-            k = layout.cone.stop - first - 1
-            mu = system.contacts[j].friction
-            w_fn, wq_fn, wv_fn, wvq_fn = self._slip[j]
-            w = self._each(w_fn, t, Q, V, (k,))
-            wq = self._each(wq_fn, t, Q, V, (k, n))
-            wv = self._each(wv_fn, t, Q, V, (k, n))
-            wvq = self._each(wvq_fn, t, Q, V, (k, n, n))
-            beta = y[first + 1 : first + 1 + k]
-            tangent_force = np.einsum("iv,ika->kva", weights, wv)  # (k, s+1, n)
-            F += np.einsum("k,kva->va", beta, tangent_force[:, :s])
-            forces_end += beta @ tangent_force[:, s]
-            Fy[:, first + 1 : first + 1 + k] = tangent_force[:, :s].reshape(k, -1).T
-            bend = np.einsum("iv,iu,ikab,k->vaub", weights, Phi, wvq, beta)
-            Fx += bend[:s, :, 1:, :].reshape(s * n, s * n)
-            # the cone's scalars: y0 = mu lambda (defined by E), z0 = zeta (free)
-            E[first] = y[first] - mu * lam
-            Ez[first, first] = 0.0
-            Ey[first, first], Ey[first, i] = 1.0, -mu
-            # the mean slip over the step and its derivative in the control points
-            w_mean = b @ w
-            dw = np.einsum("i,iu,ika->kua", b, Phi, wq) + np.einsum("i,iu,ika->kua", b, D, wv) / h
-            E[first + 1 : first + 1 + k] -= w_mean
-            Ex[first + 1 : first + 1 + k] = -dw[:, 1:].reshape(k, -1)
+        all_grads = self._each(self._grads, t, Q, V)  # (r, contacts, n)
+        all_hess = self._each(self._hessians, t, Q, V)  # (r, contacts, n, n)
+        zeros_v = np.zeros(n)
+        gaps_end = self._at(self._gaps, t_end, end, zeros_v)
+        grads_end = self._at(self._grads, t_end, end, zeros_v)
+        sn = s * n
+
+        def into_nodes(values):  # (r, k, n) at the points -> (k, s+1, n) weighted node forces
+            return np.einsum("iv,ika->kva", weights, values)
+
+        def bend(matrices):  # (r, n, n) derivative of the point forces -> (sn, sn)
+            full = np.einsum("iv,iu,iab->vaub", weights, Phi, matrices)
+            return full[:s, :, 1:, :].reshape(sn, sn)
+
+        # the normal forces lambda_c grad(phi_c) at the points, all contacts at once
+        normal = self._normal
+        lam = y[normal]
+        node_force = into_nodes(all_grads)
+        F += np.einsum("j,jva->va", lam, node_force[:, :s])
+        forces_end += lam @ node_force[:, s]
+        Fy[:, normal] = node_force[:, :s].reshape(len(normal), sn).T
+        Fx += bend(np.einsum("j,ijab->iab", lam, all_hess))
+        # the gaps at the step's end, q_{k+1} = q_k + C^s
+        E[normal] -= gaps_end + self.offsets
+        Ex[normal, (s - 1) * n :] = -grads_end
+        if self._slips is not None:
+            all_w, all_wq, all_wv, all_wvq = (self._each(f, t, Q, V) for f in self._slips)
+            # the tangential forces beta T^T at the points, every slip row at once
+            rows = self._slip_rows
+            beta = y[rows]
+            tangent = into_nodes(all_wv)
+            F += np.einsum("k,kva->va", beta, tangent[:, :s])
+            forces_end += beta @ tangent[:, s]
+            Fy[:, rows] = tangent[:, :s].reshape(len(rows), sn).T
+            Fx += bend(np.einsum("k,ikab->iab", beta, all_wvq))
+            # the mean slips over the step and their derivatives in the control points
+            dw = (
+                np.einsum("i,iu,ika->kua", b, Phi, all_wq)
+                + np.einsum("i,iu,ika->kua", b, D, all_wv) / h
+            )
+            E[rows] -= b @ all_w
+            Ex[rows] = -dw[:, 1:].reshape(len(rows), sn)
+            # the cones' scalars: y0 = mu lambda (defined by E), z0 = zeta (free)
+            for first, i, mu in self._cones:
+                E[first] = y[first] - mu * y[i]
+                Ez[first, first] = 0.0
+                Ey[first, first], Ey[first, i] = 1.0, -mu
         return F.ravel(), Fx, Fy, E, Ex, Ey, Ez, G[s] + forces_end, C
 
     def _jordan(self, z, y) -> NDArray[np.float64]:
