@@ -17,7 +17,7 @@ drop of 2 l sin(alpha) sin(gamma), so the motion settles on the limit cycle
 
 the classic result of McGeer's passive walkers. The script prints the angular
 velocity before and after each impact beside these closed forms and, with
-``--plot PATH``, draws them (it takes about half a minute: the complementarity
+``--plot PATH``, draws them (it takes about 15 s: the complementarity
 steps of ten contacts run in Python).
 
 Run::
