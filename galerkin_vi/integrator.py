@@ -472,7 +472,7 @@ class Integrator:
             progress=progress, t_eval=t_eval,
         )  # fmt: skip
         if self.system.contacts:
-            from .contact.event_driven import integrate_with_contacts
+            from .contact.runs import integrate_with_contacts
 
             return integrate_with_contacts(self, q0, v0, p0, contact_mode=contact_mode, **run)
         if contact_mode != "auto":

@@ -160,6 +160,10 @@ def test_a_process_pool_gives_the_same_members(double_pendulum):
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=2, mp_context=context) as pool:
         processes = integrator.integrate_many(q0s, v0s, h=0.01, n_steps=100, executor=pool)
+        counts = [pool.submit(compile_statistics).result() for _ in range(4)]
+    # the workers loaded the member loop and the point functions, compiling nothing
+    assert all(c["loops_compiled"] == 0 and c["points_compiled"] == 0 for c in counts), counts
+    assert any(c["loops_loaded"] >= 1 and c["points_loaded"] >= 1 for c in counts), counts
     np.testing.assert_array_equal(processes.q, threads.q)
     np.testing.assert_array_equal(processes.p, threads.p)
 

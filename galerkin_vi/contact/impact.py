@@ -26,7 +26,6 @@ velocity is reflected in the metric :math:`L_{vv}`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,44 +70,72 @@ class Impact:
 
 
 class ContactFunctions:
-    """Numeric gap, gradient and slip rows of a system's contacts (from SymPy, exact)."""
+    r"""Numeric gaps, their derivatives and the slips of a system's contacts (from SymPy, exact).
+
+    One lambdified function per kind for all contacts at once, each taking
+    ``(t, *q, *v, *params)``: the gaps (contacts,), gradients (contacts, n),
+    Hessians (contacts, n, n), and for the frictional contacts the slip
+    velocities :math:`w = T v + w_0` stacked (rows, see :attr:`slip_rows`) with
+    :math:`\partial w/\partial q`, :math:`T = \partial w/\partial v` and
+    :math:`\partial^2 w/\partial v\,\partial q`. The impact law uses them at
+    one state, the time-stepping at every quadrature point.
+    """
 
     def __init__(self, system) -> None:
-        args = (system.t if system.t is not None else sp.Dummy("t"), *system.q, *system.params)
+        t = system.t if system.t is not None else sp.Dummy("t")
+        args = (t, *system.q, *system.v, *system.params)
+        q, v = system.q, system.v
+        gaps = [c.gap for c in system.contacts]
         self._system = system
-        self.gaps: list[Callable] = []
-        self.gradients: list[Callable] = []
-        self.slips: list[tuple[Callable, Callable] | None] = []
+        self.gaps = sp.lambdify(args, gaps, "numpy")
+        self.gradients = sp.lambdify(args, [[sp.diff(g, a) for a in q] for g in gaps], "numpy")
+        self.hessians = sp.lambdify(
+            args, [[[sp.diff(g, a, b) for b in q] for a in q] for g in gaps], "numpy"
+        )
+        slips: list = []
+        #: each contact's rows among the stacked slips (None without friction)
+        self.slip_rows: list[slice | None] = []
         for contact in system.contacts:
-            self.gaps.append(sp.lambdify(args, contact.gap, "numpy"))
-            grad = [sp.diff(contact.gap, a) for a in system.q]
-            self.gradients.append(sp.lambdify(args, grad, "numpy"))
-            if contact.slip is None or contact.friction == 0.0:
-                self.slips.append(None)
-                continue
-            rows = [[sp.diff(w, b) for b in system.v] for w in contact.slip]
-            rest = [w.subs(dict.fromkeys(system.v, 0)) for w in contact.slip]
-            self.slips.append((sp.lambdify(args, rows, "numpy"), sp.lambdify(args, rest, "numpy")))
+            if contact.friction > 0.0:
+                self.slip_rows.append(slice(len(slips), len(slips) + len(contact.slip)))
+                slips += list(contact.slip)
+            else:
+                self.slip_rows.append(None)
+        self.slips = None
+        if slips:
+            self.slips = tuple(
+                sp.lambdify(args, e, "numpy")
+                for e in (
+                    slips,
+                    [[sp.diff(w, a) for a in q] for w in slips],
+                    [[sp.diff(w, a) for a in v] for w in slips],
+                    [[[sp.diff(w, b, a) for a in q] for b in v] for w in slips],
+                )
+            )
+
+    def at(self, f, t: float, q, v, prm) -> NDArray[np.float64]:
+        """``f`` (one of the functions above) at one state."""
+        return np.asarray(f(t, *q, *v, *prm), dtype=float)
 
     def gap(self, j: int, t: float, q, prm) -> float:
-        return float(self.gaps[j](t, *q, *prm))
+        return float(self.at(self.gaps, t, q, np.zeros_like(q), prm)[j])
 
     def gaps_at(self, j: int, t: NDArray, q: NDArray, prm) -> NDArray[np.float64]:
         """The gap of contact j at rows ``q`` (m, n) and times ``t`` (m,)."""
-        out = self.gaps[j](t, *q.T, *prm)
+        out = self.gaps(t, *q.T, *np.zeros_like(q).T, *prm)[j]
         return np.broadcast_to(np.asarray(out, dtype=float), t.shape)
 
     def gradient(self, j: int, t: float, q, prm) -> NDArray[np.float64]:
-        return np.asarray(self.gradients[j](t, *q, *prm), dtype=float).reshape(-1)
+        return self.at(self.gradients, t, q, np.zeros_like(q), prm)[j]
 
-    def slip_rows(self, j: int, t: float, q, prm):
-        """(T, w0) of :math:`w = T v + w_0`, or None without friction."""
-        pair = self.slips[j]
-        if pair is None:
+    def slip_matrix(self, j: int, t: float, q, prm):
+        """(T, w0) of contact j's slips :math:`w = T v + w_0`, or None without friction."""
+        rows = self.slip_rows[j]
+        if rows is None:
             return None
-        n = self._system.n
-        rows = np.asarray(pair[0](t, *q, *prm), dtype=float).reshape(-1, n)
-        return rows, np.asarray(pair[1](t, *q, *prm), dtype=float).reshape(-1)
+        zero = np.zeros_like(q)
+        T = self.at(self.slips[2], t, q, zero, prm)[rows]
+        return T, self.at(self.slips[0], t, q, zero, prm)[rows]
 
 
 def impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) -> tuple:
@@ -130,7 +157,7 @@ def impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) ->
     if not u_minus < 0.0:
         raise ValueError(f"contact {j} at t = {t}: not approaching (normal velocity {u_minus})")
     e = contact.restitution
-    slip = functions.slip_rows(j, t, q, prm)
+    slip = functions.slip_matrix(j, t, q, prm)
     if slip is None:
         v_plus, lam = _solve(system, t, q, p, v_minus, prm, g[None], g[None], [-e * u_minus])
         mode, tangential = "frictionless", np.zeros(0)
@@ -171,7 +198,7 @@ def stop_slip(system, functions: ContactFunctions, j: int, t: float, q, p, prm):
     of a step in which the contact stuck, so that the step's end velocity is the
     sticking one).
     """
-    rows, w0 = functions.slip_rows(j, t, q, prm)
+    rows, w0 = functions.slip_matrix(j, t, q, prm)
     params = dict(zip(system.params, prm, strict=True))
     v = system.inverse_legendre(q, p, t, params)
     _, lam = _solve(system, t, q, p, v, prm, rows, rows, -w0)

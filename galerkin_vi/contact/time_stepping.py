@@ -46,10 +46,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import sympy as sp
 from numpy.typing import NDArray
 
 from ..backends import numpy as numpy_backend
+from .impact import ContactFunctions
 
 __all__ = ["ContactForces", "ContactStep", "ContactStepper", "StepResult"]
 
@@ -119,26 +119,15 @@ class ContactStep:
 class ContactStepper:
     """The interior-point step of a system with contacts and a Galerkin method."""
 
-    def __init__(self, system, tables, prm) -> None:
-        self.system, self.tables, self.prm = system, tables, prm
+    def __init__(self, functions: ContactFunctions, tables, prm) -> None:
+        system = functions._system
+        self.system, self.tables, self.prm, self.functions = system, tables, prm, functions
         n = system.n
-        t = system.t if system.t is not None else sp.Dummy("t")
-        args = (t, *system.q, *system.v, *system.params)
         self.layout: list[ContactStep] = []
-        # one function per kind for all contacts at once: a step evaluates each at the
-        # quadrature points (a call per point), not once per contact
-        gaps = [c.gap for c in system.contacts]
-        self._gaps = sp.lambdify(args, gaps, "numpy")
-        self._grads = sp.lambdify(args, [[sp.diff(g, a) for a in system.q] for g in gaps])
-        self._hessians = sp.lambdify(
-            args, [[[sp.diff(g, a, b) for b in system.q] for a in system.q] for g in gaps]
-        )
-        slips: list = []
         size = 0
         for contact in system.contacts:
             if contact.friction > 0.0:
                 k = len(contact.slip)
-                slips += list(contact.slip)
                 self.layout.append(ContactStep(size, slice(size + 1, size + 2 + k)))
                 size += 2 + k
             else:
@@ -160,32 +149,19 @@ class ContactStepper:
             for layout, contact in zip(self.layout, system.contacts, strict=True)
             if layout.cone is not None
         ]
-        self._slips = None
-        if slips:
-            self._slips = tuple(
-                sp.lambdify(args, e, "numpy")
-                for e in (
-                    slips,
-                    [[sp.diff(w, a) for a in system.q] for w in slips],
-                    [[sp.diff(w, a) for a in system.v] for w in slips],
-                    [[[sp.diff(w, b, a) for a in system.q] for b in system.v] for w in slips],
-                )
-            )
         self.size = size
         self.n = n
-        #: added to each contact's gap (a contact kept apart: see contact.event_driven)
+        #: added to each contact's gap (a contact kept apart: see contact.runs)
         self.offsets = np.zeros(len(system.contacts))
         self.tangential_size = max(
             (len(c.slip) for c in system.contacts if c.friction > 0.0), default=1
         )
 
     # ----------------------------------------------------------- evaluation
-    def _at(self, f, t, q, v):
-        return np.asarray(f(t, *q, *v, *self.prm), dtype=float)
-
     def _each(self, f, t, Q, V) -> NDArray[np.float64]:
         """``f`` (all contacts at once) at every quadrature point, stacked on axis 0."""
-        return np.array([self._at(f, ti, Qi, Vi) for ti, Qi, Vi in zip(t, Q, V, strict=True)])
+        at, prm = self.functions.at, self.prm
+        return np.array([at(f, ti, Qi, Vi, prm) for ti, Qi, Vi in zip(t, Q, V, strict=True)])
 
     def _equations(self, t0, h, qk, pk, x, y, z):
         """The residuals and Jacobians of a step: the stage equations with the contact
@@ -206,11 +182,12 @@ class ContactStepper:
         end, t_end = qk + C[s], t0 + h
         forces_end = np.zeros(n)
         weights = h * b[:, None] * Phi  # (r, s+1): a force at the points, into the nodes
-        all_grads = self._each(self._grads, t, Q, V)  # (r, contacts, n)
-        all_hess = self._each(self._hessians, t, Q, V)  # (r, contacts, n, n)
+        fn = self.functions
+        all_grads = self._each(fn.gradients, t, Q, V)  # (r, contacts, n)
+        all_hess = self._each(fn.hessians, t, Q, V)  # (r, contacts, n, n)
         zeros_v = np.zeros(n)
-        gaps_end = self._at(self._gaps, t_end, end, zeros_v)
-        grads_end = self._at(self._grads, t_end, end, zeros_v)
+        gaps_end = fn.at(fn.gaps, t_end, end, zeros_v, self.prm)
+        grads_end = fn.at(fn.gradients, t_end, end, zeros_v, self.prm)
         sn = s * n
 
         def into_nodes(values):  # (r, k, n) at the points -> (k, s+1, n) weighted node forces
@@ -231,8 +208,8 @@ class ContactStepper:
         # the gaps at the step's end, q_{k+1} = q_k + C^s
         E[normal] -= gaps_end + self.offsets
         Ex[normal, (s - 1) * n :] = -grads_end
-        if self._slips is not None:
-            all_w, all_wq, all_wv, all_wvq = (self._each(f, t, Q, V) for f in self._slips)
+        if fn.slips is not None:
+            all_w, all_wq, all_wv, all_wvq = (self._each(f, t, Q, V) for f in fn.slips)
             # the tangential forces beta T^T at the points, every slip row at once
             rows = self._slip_rows
             beta = y[rows]

@@ -1,13 +1,13 @@
-r"""Isolated impacts at the method's order: the variational collision integrator.
+r"""Runs of a system with contacts: isolated impacts and persistent contact, switched between.
 
-Between impacts the run is the ordinary Galerkin integration on the grid
-:math:`t_k = t_0 + k h`. When the gap of a contact closes during step k,
-the step is cut where it closes, as in the variational collision integrators
-of Fetecau, Marsden, Ortiz and West (2003): a step of the same discrete
-Lagrangian of length :math:`\alpha h` from :math:`(q_k, p_k)` whose end lies on
-:math:`\varphi = 0`, with :math:`\alpha` the unknown (a secant iteration
-started at the root of the dense output, :mod:`galerkin_vi.events` with
-``exact=True``). There the impact law (:mod:`.impact`) maps :math:`p^-` to
+**Isolated impacts.** Between impacts the run is the ordinary Galerkin
+integration on the grid :math:`t_k = t_0 + k h`. When the gap of a contact
+closes during step k, the step is cut where it closes, as in the variational
+collision integrators of Fetecau, Marsden, Ortiz and West (2003): a step of
+the same discrete Lagrangian of length :math:`\alpha h` from :math:`(q_k, p_k)`
+whose end lies on :math:`\varphi = 0`, with :math:`\alpha` the unknown (a secant
+iteration started at the root of the dense output, :mod:`galerkin_vi.events`
+with ``exact=True``). There the impact law (:mod:`.impact`) maps :math:`p^-` to
 :math:`p^+`, and a second step of length :math:`(1 - \alpha) h` lands back on
 :math:`t_{k+1}` (cut again if another impact falls inside it). The grid never
 shifts, the impact time has the method's nodal accuracy, and so, with finitely
@@ -15,17 +15,20 @@ many impacts, has the whole run: its order is the method's (measured in the
 tests and the contact how-to). With e = 1 and no friction the impact keeps
 :math:`H(q, p)`.
 
-What isolated impacts cannot continue is a contact that persists: a body
-coming to rest on the floor (impacts accumulating, infinitely many before the
-Zeno time), one pressed against it after a plastic impact, or sliding. The run
-stops there with status :attr:`~galerkin_vi.RunStatus.CONTACT_PERSISTS`, every
-state before it kept, and says so.
+**Persistent contact.** Isolated impacts cannot continue a contact that
+persists: a body coming to rest on the floor (impacts accumulating, infinitely
+many before the Zeno time), one pressed against it after a plastic impact, or
+sliding. ``contact_mode="auto"`` switches there to a complementarity problem
+per step (:mod:`.time_stepping`), still cutting out of its steps the impacts
+of contacts that were open, and back to isolated impacts when every contact
+has released for two steps; ``"event"`` stops there with status
+:attr:`~galerkin_vi.RunStatus.CONTACT_PERSISTS`, every state before it kept;
+``"time-stepping"`` takes every step as a complementarity problem.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -91,7 +94,7 @@ def integrate_with_contacts(
     q = integrator._state("q0", q0)
     _check_initial_gaps(system, functions, t0, q, prm)
     q, p, _ = integrator._initial_state(q, v0, p0, t0, prm, False)
-    run = _Run(integrator, functions, prm, h, progress)
+    run = _Run(integrator, functions, prm, h)
     run.rows(t0, q, p)
     k = 0  # grid index of the current state (or of the step it lies in)
     stepping = contact_mode == "time-stepping"
@@ -109,7 +112,6 @@ def integrate_with_contacts(
                 # from the last state kept on: a complementarity problem per step
                 t_last = float(run.last()[0])
                 k = int(np.floor((t_last - t0) / h * (1 + 4 * np.finfo(float).eps)))
-                run.switches.append((t_last, stop.message))
                 stepping = True
     except _Stop as stop:
         return run.stopped(stop, on_failure)
@@ -129,7 +131,7 @@ class _Stop(Exception):
 class _Run:
     """The rows and impacts of a run with contacts, as they are computed."""
 
-    def __init__(self, integrator, functions: ContactFunctions, prm, h: float, progress) -> None:
+    def __init__(self, integrator, functions: ContactFunctions, prm, h: float) -> None:
         self.integrator, self.functions, self.prm, self.h = integrator, functions, prm, h
         self.system = integrator.system
         self.params = dict(zip(self.system.params, prm, strict=True))
@@ -141,7 +143,6 @@ class _Run:
         self._p: list = []
         self.impacts: list[Impact] = []
         self.iterations = 0
-        self.switches: list[tuple[float, str]] = []
         self.forces: list[tuple[float, NDArray, NDArray, int, float]] = []
         self._stepper = None
         self._duals = None
@@ -186,7 +187,7 @@ class _Run:
             tables = self.integrator.method.tables
             steppers = self.system.__dict__.setdefault("_contact_steppers", {})
             if id(tables) not in steppers:
-                steppers[id(tables)] = (tables, ContactStepper(self.system, tables, self.prm))
+                steppers[id(tables)] = (tables, ContactStepper(self.functions, tables, self.prm))
             self._stepper = steppers[id(tables)][1]
             self._stepper.prm = self.prm  # the run's parameters
             self._duals = np.ones(self._stepper.size)
@@ -267,6 +268,8 @@ class _Run:
             self.impacts.append(impact)
             self.rows([t_hit, t_hit], [q_hit, q_hit], [p_minus, p_plus])
             t, q, p = t_hit, q_hit, p_plus
+        else:
+            raise self._persists(j, t, k, f"more than {MAX_IMPACTS_PER_STEP} impacts in one step")
         self._duals = result.duals
         self.forces.append(
             (t, result.normal, result.tangential, result.iterations, result.complementarity)
@@ -479,7 +482,7 @@ class _Run:
             warnings.warn(stop.message, RunFailureWarning, stacklevel=4)
             return traj
         return failed_run(
-            replace(traj), on_failure, step=stop.step, t=stop.t, residual=stop.residual,
+            traj, on_failure, step=stop.step, t=stop.t, residual=stop.residual,
             stacklevel=5,
         )  # fmt: skip
 
