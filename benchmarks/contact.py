@@ -185,7 +185,7 @@ def mujoco_roll(h: float) -> float:
 SCENES = {
     "ball": (gvi_ball, mujoco_ball, (0.1, 1e-2, 1e-3), (1e-3, 1e-4)),
     "incline": (gvi_incline, mujoco_incline, (0.5, 0.1, 0.01), (1e-2, 1e-3, 1e-4)),
-    "roll": (gvi_roll, mujoco_roll, (0.25, 0.05, 0.01), (1e-2, 1e-3, 1e-4)),
+    "roll": (gvi_roll, mujoco_roll, (0.5, 0.2, 0.05), (1e-2, 1e-3, 1e-4)),
 }
 
 

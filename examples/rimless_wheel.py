@@ -17,7 +17,8 @@ drop of 2 l sin(alpha) sin(gamma), so the motion settles on the limit cycle
 
 the classic result of McGeer's passive walkers. The script prints the angular
 velocity before and after each impact beside these closed forms and, with
-``--plot PATH``, draws them (it takes about 15 s: the complementarity
+``--plot PATH``, draws them with the energy lost at each impact against the
+drop of one stride (it takes about 15 s: the complementarity
 steps of ten contacts run in Python).
 
 Run::
@@ -106,13 +107,20 @@ def _plot(traj, rows, before, after, path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
+    fig, (top, middle, bottom) = plt.subplots(3, 1, figsize=(7, 7), sharex=True)
     top.plot(traj.t, -traj.p[:, 2] / INERTIA, lw=1, label=r"$-\omega$ (forward)")
     top.axhline(before, color="C3", ls="--", lw=0.8, label=r"limit cycle $\omega^-$")
     top.axhline(after, color="C2", ls="--", lw=0.8, label=r"limit cycle $\omega^+$")
     top.set_ylabel("angular velocity (rad/s)")
     top.legend(loc="lower right", fontsize=8)
     top.set_title(f"rimless wheel, {N} spokes, slope {SLOPE} rad: plastic impacts, sticking feet")
+    # on the cycle each impact takes what one stride's drop gives: m g 2 l sin(alpha) sin(gamma)
+    stride = 2 * MASS * G * LENGTH * np.sin(np.pi / N) * np.sin(SLOPE)
+    lost = [impact.energy_lost for impact in traj.impacts]
+    middle.plot(rows[:, 0], lost, "o", ms=3, label="energy lost at each impact")
+    middle.axhline(stride, color="k", ls="--", lw=0.8, label="drop of one stride (limit cycle)")
+    middle.set_ylabel("J")
+    middle.legend(loc="upper right", fontsize=8)
     bottom.semilogy(rows[:, 0], np.abs(rows[:, 1] - before), "o-", ms=3,
                     label=r"$|\omega^-_k - \omega^-_\ast|$")  # fmt: skip
     bottom.set_xlabel("t (s)")

@@ -32,7 +32,7 @@ def test_bouncing_ball_impact_times_apexes_and_energies(degree):
     k = np.arange(1, 7)
     times = np.array([i.t for i in traj.impacts])
     # t_k = t_1 [1 + 2e(1 - e^(k-1)) / (1 - e)]: the target is 1e-10 at h = 1e-3
-    np.testing.assert_allclose(times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), atol=1e-13)
+    np.testing.assert_allclose(times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), rtol=0, atol=1e-13)
     # energy after k impacts e^(2k) m g h0, lost at impact k: (1 - e^2) e^(2(k-1)) m g h0
     lost = np.array([i.energy_lost for i in traj.impacts])
     np.testing.assert_allclose(lost, (1 - e**2) * e ** (2 * (k - 1)) * G * h0, rtol=1e-12)
@@ -65,7 +65,7 @@ def test_accumulating_impacts_stop_before_the_zeno_time_with_the_states_kept():
     times = np.array([i.t for i in traj.impacts])
     k = np.arange(1, len(times) + 1)
     t1 = np.sqrt(2 / G)
-    np.testing.assert_allclose(times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), atol=1e-12)
+    np.testing.assert_allclose(times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), rtol=0, atol=1e-12)
 
 
 def test_elastic_impacts_keep_the_energy():
@@ -84,8 +84,8 @@ def test_elastic_impacts_ten_thousand_times():
     integrator = gvi.Integrator(_ball(1.0), gvi.Galerkin(3))
     traj = integrator.integrate([1.0], [0.0], h=1e-2, n_steps=903_000)
     assert len(traj.impacts) == 9999
-    # measured 4.2e-13: round-off that grows by about 4e-17 per impact (a drift of
-    # a fraction of an ulp per impact, from the cut steps; see the contact how-to)
+    # measured 4.2e-13: round-off that grows by about 4e-17 per impact (a fraction of
+    # an ulp per flight, from the grid steps between impacts; see the contact how-to)
     assert np.abs(traj.energy() / G - 1.0).max() < 1e-12
 
 
@@ -254,7 +254,7 @@ def test_the_ball_comes_to_rest_after_the_zeno_time():
     k = np.arange(1, 21)
     times = np.array([i.t for i in traj.impacts[:20]])
     t1 = np.sqrt(2 / G)
-    np.testing.assert_allclose(times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), atol=1e-12)
+    np.testing.assert_allclose(times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), rtol=0, atol=1e-12)
 
 
 def _block(angle: float, mu: float) -> gvi.LagrangianSystem:
@@ -283,8 +283,9 @@ def test_a_block_slides_with_kinetic_friction_when_tan_a_exceeds_mu(degree):
     integrator = gvi.Integrator(_block(angle, mu), gvi.Galerkin(degree))
     traj = integrator.integrate([0.0, 0.0], [0.0, 0.0], h=0.01, t_span=(0.0, 1.0))
     acceleration = G * (np.sin(angle) - mu * np.cos(angle))
-    # s = g (sin a - mu cos a) t^2 / 2: a quadratic, which the steps reproduce exactly
-    np.testing.assert_allclose(traj.q[:, 0], acceleration * traj.t**2 / 2, atol=1e-13)
+    # s = g (sin a - mu cos a) t^2 / 2: a quadratic, which the steps reproduce up to the
+    # interior point's tolerance on the friction force (measured 1.3e-11 at 1 s)
+    np.testing.assert_allclose(traj.q[:, 0], acceleration * traj.t**2 / 2, rtol=0, atol=5e-11)
     assert np.abs(traj.q[:, 1]).max() < 1e-14
     forces = traj.contact_forces
     np.testing.assert_allclose(forces.tangential[:, 0], -mu * G * np.cos(angle), rtol=1e-10)
@@ -301,7 +302,7 @@ def test_a_block_sliding_up_to_friction_stops_at_the_closed_form_distance(h):
     # exact up to the step in which it stops: at most deceleration h^2 / 2 short
     assert 0.0 <= distance - traj.q[-1, 0] <= deceleration * h**2 / 2 + 1e-14
     assert traj.p[-1, 0] == 0.0  # at rest, held by static friction
-    np.testing.assert_allclose(traj.contact_forces.tangential[-1, 0], -G * np.sin(angle))
+    np.testing.assert_allclose(traj.contact_forces.tangential[-1, 0], -G * np.sin(angle), rtol=1e-10)
     _assert_interior_point_statistics(traj.contact_forces)
 
 
@@ -341,7 +342,7 @@ def test_newtons_cradle_answers_sequentially():
     # the impacts one after the other at the same instant: (0, 0, v), not (-v/3, 2v/3, 2v/3)
     assert [(i.t, i.contact) for i in traj.impacts] == [(1.0, 0), (1.0, 1)]
     np.testing.assert_array_equal(traj.p[-1], [0.0, 0.0, 1.0])
-    np.testing.assert_allclose(traj.q[-1], [0.0, 1.0, 3.5], atol=1e-15)
+    np.testing.assert_allclose(traj.q[-1], [0.0, 1.0, 3.5], rtol=0, atol=1e-15)
     assert np.ptp(traj.energy()) == 0.0
 
 
@@ -377,7 +378,7 @@ def test_time_stepping_from_the_start_cuts_its_steps_at_impacts():
     k = np.arange(1, 4)
     t1 = np.sqrt(2 / G)
     times = np.array([i.t for i in traj.impacts])
-    np.testing.assert_allclose(times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), atol=1e-13)
+    np.testing.assert_allclose(times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), rtol=0, atol=1e-13)
     np.testing.assert_allclose(traj.energy()[-1], e**6 * G, rtol=1e-12)
     _assert_interior_point_statistics(traj.contact_forces)
 
@@ -393,7 +394,7 @@ def test_an_impact_while_another_contact_persists_is_cut_out_exactly():
     traj = integrator.integrate([0.0, 2.0], [0.0, 0.0], h=0.01, t_span=(0.0, 0.6))
     (impact,) = traj.impacts
     assert impact.contact == 1 and traj.contact_forces is not None
-    np.testing.assert_allclose(impact.t, np.sqrt(2 / G), atol=1e-13)
+    np.testing.assert_allclose(impact.t, np.sqrt(2 / G), rtol=0, atol=1e-13)
     np.testing.assert_allclose(impact.normal_velocity, [-G * impact.t, 0.5 * G * impact.t])
     assert np.abs(traj.q[:, 0]).max() < 1e-12  # the block stayed
 

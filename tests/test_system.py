@@ -272,7 +272,7 @@ def test_relativistic_particle_in_the_plane_is_regular():
     system = gvi.LagrangianSystem(-sp.sqrt(1 - vx**2 - vy**2), [x, y], [vx, vy])
     v = np.array([0.3, -0.4])
     p = system.legendre(np.zeros(2), v)
-    np.testing.assert_allclose(system.inverse_legendre(np.zeros(2), p), v, atol=1e-14)
+    np.testing.assert_allclose(system.inverse_legendre(np.zeros(2), p), v, rtol=0, atol=1e-14)
 
 
 # ------------------------------------------------------------------ energy
@@ -549,7 +549,7 @@ def test_inverse_legendre_at_a_singular_state_raises():
 def test_inverse_legendre_outside_the_range_is_a_clear_error():
     # L = log cosh v: p = tanh v lies in (-1, 1); p = 2 has no velocity
     system = gvi.LagrangianSystem(sp.log(sp.cosh(vx)) - x**2 / 2, [x], [vx])
-    np.testing.assert_allclose(system.inverse_legendre([0.0], [0.5]), [np.arctanh(0.5)], atol=1e-14)
+    np.testing.assert_allclose(system.inverse_legendre([0.0], [0.5]), [np.arctanh(0.5)], rtol=0, atol=1e-14)
     with pytest.raises(ValueError, match="range of the Legendre transform"):
         system.inverse_legendre([0.0], [2.0])
 
