@@ -32,7 +32,9 @@ def test_bouncing_ball_impact_times_apexes_and_energies(degree):
     k = np.arange(1, 7)
     times = np.array([i.t for i in traj.impacts])
     # t_k = t_1 [1 + 2e(1 - e^(k-1)) / (1 - e)]: the target is 1e-10 at h = 1e-3
-    np.testing.assert_allclose(times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(
+        times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), rtol=0, atol=1e-13
+    )
     # energy after k impacts e^(2k) m g h0, lost at impact k: (1 - e^2) e^(2(k-1)) m g h0
     lost = np.array([i.energy_lost for i in traj.impacts])
     np.testing.assert_allclose(lost, (1 - e**2) * e ** (2 * (k - 1)) * G * h0, rtol=1e-12)
@@ -65,7 +67,9 @@ def test_accumulating_impacts_stop_before_the_zeno_time_with_the_states_kept():
     times = np.array([i.t for i in traj.impacts])
     k = np.arange(1, len(times) + 1)
     t1 = np.sqrt(2 / G)
-    np.testing.assert_allclose(times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), rtol=0, atol=1e-12
+    )
 
 
 def test_elastic_impacts_keep_the_energy():
@@ -254,7 +258,9 @@ def test_the_ball_comes_to_rest_after_the_zeno_time():
     k = np.arange(1, 21)
     times = np.array([i.t for i in traj.impacts[:20]])
     t1 = np.sqrt(2 / G)
-    np.testing.assert_allclose(times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), rtol=0, atol=1e-12
+    )
 
 
 def _block(angle: float, mu: float) -> gvi.LagrangianSystem:
@@ -302,7 +308,9 @@ def test_a_block_sliding_up_to_friction_stops_at_the_closed_form_distance(h):
     # exact up to the step in which it stops: at most deceleration h^2 / 2 short
     assert 0.0 <= distance - traj.q[-1, 0] <= deceleration * h**2 / 2 + 1e-14
     assert traj.p[-1, 0] == 0.0  # at rest, held by static friction
-    np.testing.assert_allclose(traj.contact_forces.tangential[-1, 0], -G * np.sin(angle), rtol=1e-10)
+    np.testing.assert_allclose(
+        traj.contact_forces.tangential[-1, 0], -G * np.sin(angle), rtol=1e-10
+    )
     _assert_interior_point_statistics(traj.contact_forces)
 
 
@@ -378,7 +386,9 @@ def test_time_stepping_from_the_start_cuts_its_steps_at_impacts():
     k = np.arange(1, 4)
     t1 = np.sqrt(2 / G)
     times = np.array([i.t for i in traj.impacts])
-    np.testing.assert_allclose(times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(
+        times, t1 * (1 + 2 * e * (1 - e ** (k - 1)) / (1 - e)), rtol=0, atol=1e-13
+    )
     np.testing.assert_allclose(traj.energy()[-1], e**6 * G, rtol=1e-12)
     _assert_interior_point_statistics(traj.contact_forces)
 

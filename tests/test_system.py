@@ -549,7 +549,9 @@ def test_inverse_legendre_at_a_singular_state_raises():
 def test_inverse_legendre_outside_the_range_is_a_clear_error():
     # L = log cosh v: p = tanh v lies in (-1, 1); p = 2 has no velocity
     system = gvi.LagrangianSystem(sp.log(sp.cosh(vx)) - x**2 / 2, [x], [vx])
-    np.testing.assert_allclose(system.inverse_legendre([0.0], [0.5]), [np.arctanh(0.5)], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(
+        system.inverse_legendre([0.0], [0.5]), [np.arctanh(0.5)], rtol=0, atol=1e-14
+    )
     with pytest.raises(ValueError, match="range of the Legendre transform"):
         system.inverse_legendre([0.0], [2.0])
 

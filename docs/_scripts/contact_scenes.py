@@ -46,7 +46,7 @@ def _incline(plt) -> None:
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
     scenes = [(0.5, 0.3, 0.0, "a = 0.5, mu = 0.3, from rest: slides"),
               (0.3, 0.5, 1.0, "a = 0.3, mu = 0.5, at 1 m/s: stops, sticks")]  # fmt: skip
-    for colour, (angle, mu, v0, label) in zip(("C0", "C1"), scenes):
+    for colour, (angle, mu, v0, label) in zip(("C0", "C1"), scenes, strict=True):
         traj = gvi.Integrator(_block(angle, mu), gvi.Galerkin(2)).integrate(
             [0.0, 0.0], [v0, 0.0], h=0.01, t_span=(0.0, 1.0)
         )
@@ -56,8 +56,10 @@ def _incline(plt) -> None:
         exact = v0 * t + acceleration * t**2 / 2
         energy = traj.energy() - traj.energy()[0]
         friction_work = -mu * G * np.cos(angle) * exact
-        print(f"incline {label}: distance off by {np.abs(traj.q[:, 0] - exact).max():.1e}, "
-              f"energy off the friction work by {np.abs(energy - friction_work).max():.1e}")  # fmt: skip
+        distance_error = np.abs(traj.q[:, 0] - exact).max()
+        energy_error = np.abs(energy - friction_work).max()
+        print(f"incline {label}: distance off by {distance_error:.1e}, "
+              f"energy off the friction work by {energy_error:.1e}")  # fmt: skip
         top.plot(traj.t, traj.q[:, 0], color=colour, lw=1.5, label=label)
         top.plot(traj.t, exact, "k--", lw=0.8)
         bottom.plot(traj.t, energy, color=colour, lw=1.5)
