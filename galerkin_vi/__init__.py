@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .action import ActionStatus, BoundaryValueResult, solve_bvp
 from .adaptive import AdaptiveIntegrator, AdaptiveTrajectory, PoincareTransform, encounter_scaling
 from .choice import MethodChoice, choose_method
 from .errors import (
@@ -23,8 +24,10 @@ from .unilateral import Contact
 from .verification import OrderResult, measure_order
 
 __all__ = [
+    "ActionStatus",
     "AdaptiveIntegrator",
     "AdaptiveTrajectory",
+    "BoundaryValueResult",
     "ConditioningWarning",
     "Contact",
     "ConvergenceError",
@@ -47,6 +50,7 @@ __all__ = [
     "gauss_legendre",
     "gauss_lobatto",
     "measure_order",
+    "solve_bvp",
 ]
 
 __version__ = "0.1.0"

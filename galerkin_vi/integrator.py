@@ -273,6 +273,24 @@ class Integrator:
         periodic = np.array(spec.periodic or (False,) * self.system.n, dtype=np.bool_)
         return fn, traits, pattern, periodic
 
+    def compiled_point_functions(self, names: tuple[str, ...]) -> tuple[tuple[int, ...], tuple]:
+        """(addresses, traits) of the system's compiled point functions ``names``.
+
+        For compiled solvers outside the time loops (:mod:`galerkin_vi.action`):
+        the addresses fill the slots of :mod:`galerkin_vi.loops.point` (0 where
+        not asked for), the traits are the loops' (:mod:`galerkin_vi.loops.traits`).
+        Numba backend only; the points are compiled (or loaded) on first use.
+        """
+        if self.backend != "numba":
+            raise ValueError("compiled point functions need the numba backend")
+        fn = tuple(int(address) for address in self._points.addresses(names))
+        return fn, self._loop_arguments[1]
+
+    @property
+    def uses_banded_storage(self) -> bool:
+        """Whether the point functions write second derivatives in banded (pattern) storage."""
+        return bool(self._summary.banded)
+
     # ------------------------------------------------------------ validation
     def _state(self, name: str, x: ArrayLike) -> NDArray[np.float64]:
         return state_vector(name, x, self.system.n)

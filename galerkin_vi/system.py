@@ -406,7 +406,12 @@ class LagrangianSystem:
         # sent to another process (an ensemble's worker) builds them again on first use
         state = self.__dict__.copy()
         state.pop("_evaluators", None)
-        for cached in ("_event_functions", "_contact_functions", "_contact_steppers"):
+        for cached in (
+            "_event_functions",
+            "_contact_functions",
+            "_contact_steppers",
+            "_action_points",
+        ):
             state.pop(cached, None)
         return state
 

@@ -1,0 +1,11 @@
+"""Physics as a stationary action: boundary-value problems through the discrete action.
+
+The discrete action :math:`S_d = \\sum_k L_d(q_k, q_{k+1}, h)` of a whole path,
+with its exact derivatives (:mod:`.elements`), made stationary at once by
+Newton's method on a condensed, banded system (:mod:`.condensation`):
+:func:`solve_bvp` for two-point boundary-value problems.
+"""
+
+from .bvp import ActionStatus, BoundaryValueResult, solve_bvp
+
+__all__ = ["ActionStatus", "BoundaryValueResult", "solve_bvp"]
