@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
-from .action import ActionStatus, BoundaryValueResult, solve_bvp
+from .action import (
+    ActionStatus,
+    BoundaryValueResult,
+    PeriodicOrbit,
+    follow_family,
+    solve_bvp,
+    solve_periodic,
+)
 from .adaptive import AdaptiveIntegrator, AdaptiveTrajectory, PoincareTransform, encounter_scaling
 from .choice import MethodChoice, choose_method
 from .errors import (
@@ -40,6 +47,7 @@ __all__ = [
     "MethodChoice",
     "OrderReductionWarning",
     "OrderResult",
+    "PeriodicOrbit",
     "PoincareTransform",
     "QuadratureRule",
     "RunFailureWarning",
@@ -47,10 +55,12 @@ __all__ = [
     "Trajectory",
     "choose_method",
     "encounter_scaling",
+    "follow_family",
     "gauss_legendre",
     "gauss_lobatto",
     "measure_order",
     "solve_bvp",
+    "solve_periodic",
 ]
 
 __version__ = "0.1.0"

@@ -17,7 +17,11 @@ import sys
 import time
 from collections.abc import Sequence
 
-__all__ = ["RUN_SECONDS", "main", "warm_up"]
+__all__ = ["BOUNDARY_VALUE", "RUN_SECONDS", "main", "warm_up"]
+
+#: the label of the run that compiles the Newton iteration of boundary-value problems
+#: (:mod:`galerkin_vi.loops.action`) instead of a time loop
+BOUNDARY_VALUE = "boundary-value problem"
 
 
 def _runs():
@@ -28,7 +32,8 @@ def _runs():
     general loop (dense or banded) x (with or without L_qv / f_v couplings), linear
     loop (dense or banded), constrained loop, explicit loop (diagonal or full mass
     matrix) x (angles or none) x (autonomous or time-dependent). Each implicit variant
-    is also run as a two-member ensemble (:mod:`galerkin_vi.loops.members`).
+    is also run as a two-member ensemble (:mod:`galerkin_vi.loops.members`). The last
+    run solves a boundary-value problem (:mod:`galerkin_vi.loops.action`).
     """
     import sympy as sp
 
@@ -86,6 +91,7 @@ def _runs():
         ("explicit, time, no angles", timed_quartic, g1, True, *one),
         ("explicit, time, full M", timed_angles, g1, True, *two),
         ("explicit, time, full M, no angles", timed_coupled, g1, True, *two),
+        (BOUNDARY_VALUE, pendulum, g2, True, *one),
     ]
 
 
@@ -111,6 +117,7 @@ RUN_SECONDS = (
     0.5,
     1.1,
     0.5,
+    20.0,
 )
 
 
@@ -130,14 +137,21 @@ def warm_up(group: int = 0, of: int = 1, verbose: bool = False) -> dict[str, flo
 
     Returns the seconds each run took, by the variant's label.
     """
+    from .action import solve_bvp
     from .integrator import Integrator
 
     runs = _runs()
     seconds: dict[str, float] = {}
     for index in _group(group, of):
         label, system, method, specialize, q0, v0 = runs[index]
-        integrator = Integrator(system, method, specialize=specialize)
         start = time.perf_counter()
+        if label == BOUNDARY_VALUE:
+            solve_bvp(system, method, q0, v0, (0.0, 0.1), 4, backend="numba")
+            seconds[label] = time.perf_counter() - start
+            if verbose:
+                print(f"  {seconds[label]:5.1f} s  {label}", flush=True)
+            continue
+        integrator = Integrator(system, method, specialize=specialize)
         integrator.integrate(q0, v0=v0, h=0.01, n_steps=2, on_failure="raise")
         if integrator.kernel_path != "explicit":
             # the member loop of ensembles (and their Legendre transforms) for this loop

@@ -25,6 +25,7 @@ RUNS = {
     "constrained_dae.py": (["--t-final", "5", "--output", str(SMOKE_OUTPUT)], "max|g|"),
     "four_bar_linkage.py": (["--steps", "2000"], "max |g(q_k)|"),
     "rimless_wheel.py": (["--seconds", "0.6"], "closed form: omega-"),
+    "pendulum_bvp.py": ([], "nodal slopes"),
 }
 
 

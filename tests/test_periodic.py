@@ -1,97 +1,130 @@
-"""Angles: detection of 2 pi-periodic coordinates and their reduction inside the loops."""
+"""Periodic orbits through the discrete action: pendulum closed forms, the figure eight."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import sympy as sp
+from scipy.special import ellipk
 
 import galerkin_vi as gvi
-from galerkin_vi.backends.numpy import unwrapped, wrap_angles
-from galerkin_vi.symbolic import periodic_coordinates
+from galerkin_vi.action import ActionStatus
 
-x, y, th, ph = sp.symbols("x y th ph")
-vx, vy, w, wp = sp.symbols("vx vy w wp")
-
-
-@pytest.mark.parametrize(
-    ("expr", "expected"),
-    [
-        (w**2 / 2 + sp.cos(th), (True,)),
-        (w**2 / 2 + sp.cos(2 * th) + sp.sin(3 * th) ** 2, (True,)),
-        (w**2 / 2 + sp.cos(th / 2), (False,)),  # period 4 pi
-        (w**2 / 2 - th**2 / 2, (False,)),
-        (w**2 / 2 + th * sp.sin(th), (False,)),
-    ],
-)
-def test_periodic_coordinates_are_found_symbolically(expr, expected):
-    assert periodic_coordinates([expr], [th]) == expected
+th, w = sp.symbols("theta w")
+PENDULUM = gvi.LagrangianSystem(w**2 / 2 + sp.cos(th), [th], [w])
 
 
-def test_a_coordinate_that_appears_nowhere_is_not_an_angle():
-    assert periodic_coordinates([w**2 / 2], [th]) == (False,)
+def _libration_period(theta0: float) -> float:
+    return 4 * ellipk(np.sin(theta0 / 2) ** 2)
 
 
-def test_every_expression_must_be_periodic():
-    # L is periodic in th, a constraint is not: th is then no angle
-    assert periodic_coordinates([sp.cos(th), th - x], [th, x]) == (False, False)
-    system = gvi.LagrangianSystem(
-        (wp**2 + w**2) / 2 + sp.cos(th) + sp.cos(ph), [th, ph], [w, wp], forces=[-w, ph]
+@pytest.mark.parametrize("degree", [2, 3])
+def test_the_period_at_a_given_energy_converges_at_the_methods_order(degree):
+    theta0 = 1.0
+    energy, period = -np.cos(theta0), _libration_period(theta0)  # 4 K(sin^2(theta0/2))
+    errors = []
+    for N in (20, 40):
+        orbit = gvi.solve_periodic(PENDULUM, gvi.Galerkin(degree), [0.9], [0.0], 6.0, N,
+                                   energy=energy)  # fmt: skip
+        assert orbit.success and orbit.residual < 1e-13
+        traj = orbit.trajectory
+        np.testing.assert_array_equal(traj.q[-1], traj.q[0])  # closed
+        # E* at node 0, where it is imposed; along the orbit it oscillates at O(h^2s)
+        assert traj.energy()[0] == pytest.approx(energy, abs=1e-13)
+        assert np.ptp(traj.energy()) < 1e-2 * (10 / N) ** (2 * degree)  # measured 2e-5, 2e-8
+        errors.append(abs(orbit.period - period))
+    assert abs(np.log2(errors[0] / errors[1]) - 2 * degree) < 0.5
+
+
+def test_the_orbit_of_a_given_period_has_the_closed_form_amplitude():
+    theta0 = 1.0
+    errors = []
+    for N in (20, 40):
+        orbit = gvi.solve_periodic(PENDULUM, gvi.Galerkin(2), [0.9], [0.0],
+                                   _libration_period(theta0), N)  # fmt: skip
+        assert orbit.success and orbit.period == _libration_period(theta0)
+        errors.append(abs(orbit.trajectory.energy()[0] + np.cos(theta0)))
+        # the energy of the discrete orbit is constant along it to the method's order
+        assert np.ptp(orbit.trajectory.energy()) < 2e-5
+    assert np.log2(errors[0] / errors[1]) > 3.8
+
+
+def test_the_border_multiplier_of_the_time_shift_vanishes_with_h():
+    # the time shift is a symmetry of the discrete action only as h -> 0: the border's
+    # multiplier measures the defect, which falls fast
+    energy = -np.cos(1.0)
+    coarse, fine = (gvi.solve_periodic(PENDULUM, gvi.Galerkin(2), [0.9], [0.0], 6.0, N,
+                                       energy=energy) for N in (10, 20))  # fmt: skip
+    assert abs(coarse.multipliers[0]) > 1e-9 and abs(fine.multipliers[0]) < 1e-14
+
+
+def _three_bodies():
+    x, y = sp.symbols("x1:4"), sp.symbols("y1:4")
+    vx, vy = sp.symbols("vx1:4"), sp.symbols("vy1:4")
+    q = [c for i in range(3) for c in (x[i], y[i])]
+    v = [c for i in range(3) for c in (vx[i], vy[i])]
+    potential = sum(
+        1 / sp.sqrt((x[i] - x[j]) ** 2 + (y[i] - y[j]) ** 2) for i in range(3) for j in range(i)
     )
-    assert system.periodic == (True, False)
+    system = gvi.LagrangianSystem(sum(c**2 for c in v) / 2 + potential, q, v)
+    translations = [[1, 0, 1, 0, 1, 0], [0, 1, 0, 1, 0, 1]]
+    rotation = [-y[0], x[0], -y[1], x[1], -y[2], x[2]]
+    return system, [*translations, rotation]
 
 
-def test_wrapping_removes_whole_turns_exactly():
-    # 2 pi is removed as hi + lo, so the compensated value keeps its low-order bits
-    q = np.array([50.0, 0.5, -20.0])
-    lost, turns = np.zeros(3), np.zeros(3)
-    qk = q.copy()
-    wrap_angles(np.array([True, True, True]), qk, lost, turns)
-    assert np.all(qk >= -np.pi) and np.all(qk < np.pi)
-    np.testing.assert_array_equal(turns, [8.0, 0.0, -3.0])
-    np.testing.assert_allclose(unwrapped(qk - lost, turns), q, rtol=0, atol=4e-15)
+def test_the_figure_eight_from_its_eight_digit_guess():
+    system, symmetries = _three_bodies()
+    period, energy = 6.32591398292621, -1.287141995631852
+    x1 = np.array([0.97000436, -0.24308753])
+    v3 = np.array([-0.93240737, -0.86473146])
+    q0 = np.concatenate([x1, -x1, [0.0, 0.0]])
+    v0 = np.concatenate([-v3 / 2, -v3 / 2, v3])
+    N = 60
+    orbit = gvi.solve_periodic(system, gvi.Galerkin(6), q0, v0, period, N, symmetries=symmetries)
+    assert orbit.success and orbit.iterations <= 6 and orbit.residual < 1e-12
+    traj = orbit.trajectory
+    np.testing.assert_allclose(traj.energy(), energy, rtol=0, atol=1e-12)
+    assert np.abs(traj.momentum(symmetries[2])).max() < 1e-13  # zero angular momentum
+    # a choreography: q3(t) = q1(t + T/3), q2(t) = q1(t + 2T/3)
+    nodes = traj.q[:-1]
+    np.testing.assert_allclose(nodes[:, 4:6], np.roll(nodes[:, 0:2], -N // 3, axis=0), atol=1e-12)
+    np.testing.assert_allclose(nodes[:, 2:4], np.roll(nodes[:, 0:2], -2 * N // 3, axis=0),
+                               atol=1e-12)  # fmt: skip
+    # the action over one period, 24.42704864453, is -3 E T by the virial theorem
+    assert orbit.action == pytest.approx(24.42704864453, abs=1e-10)
+    assert orbit.action == pytest.approx(-3 * energy * period, abs=1e-11)
+    assert np.abs(orbit.multipliers).max() < 1e-14
 
 
-@pytest.mark.parametrize("backend", ["numba", "numpy"])
-@pytest.mark.parametrize("degree", [1, 2])
-def test_rotating_pendulum_output_is_continuous_and_state_is_reduced(backend, degree):
-    pendulum = gvi.LagrangianSystem(w**2 / 2 + sp.cos(th), [th], [w])
-    assert pendulum.periodic == (True,)
-    integrator = gvi.Integrator(pendulum, gvi.Galerkin(degree), backend=backend)
-    traj = integrator.integrate([0.0], v0=[3.0], h=0.05, n_steps=400)
-    # above the separatrix (v0 > 2): the angle grows monotonically through many turns
-    assert np.all(np.diff(traj.q[:, 0]) > 0)
-    assert traj.q[-1, 0] > 6 * np.pi
-    assert np.all(np.abs(traj.q_reduced) <= np.pi)
-    turns = np.round((traj.q - traj.q_reduced) / (2 * np.pi))
-    np.testing.assert_allclose(traj.q, traj.q_reduced + 2 * np.pi * turns, rtol=0, atol=1e-13)
-    energy = traj.energy()
-    assert np.ptp(energy) < (5e-3 if degree == 1 else 1e-5)  # O(h^2s) error, no drift
+def test_following_the_pendulums_family_along_the_energy():
+    start = gvi.solve_periodic(PENDULUM, gvi.Galerkin(3), [0.5], [0.0], 6.5, 40,
+                               energy=-np.cos(0.5))  # fmt: skip
+    amplitudes = np.linspace(0.6, 1.6, 6)
+    family = gvi.follow_family(PENDULUM, gvi.Galerkin(3), start, -np.cos(amplitudes))
+    assert len(family) == 6 and all(orbit.success for orbit in family)
+    periods = np.array([orbit.period for orbit in family])
+    np.testing.assert_allclose(periods, [_libration_period(a) for a in amplitudes], rtol=1e-7)
+    assert np.all(np.diff(periods) > 0)  # the period grows with the amplitude
 
 
-def test_backends_agree_on_a_rotating_pendulum_with_the_explicit_loop():
-    pendulum = gvi.LagrangianSystem(w**2 / 2 + sp.cos(th), [th], [w])
-    explicit = gvi.Integrator(pendulum, gvi.Galerkin(1), backend="numba")
-    assert explicit.kernel_path == "explicit"
-    reference = gvi.Integrator(pendulum, gvi.Galerkin(1), backend="numpy")
-    a = explicit.integrate([3.0], v0=[3.0], h=0.05, n_steps=300)
-    b = reference.integrate([3.0], v0=[3.0], h=0.05, n_steps=300)
-    np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(a.p, b.p, rtol=0, atol=1e-12)
-
-
-def test_whole_turns_in_the_initial_angle_do_not_change_the_motion():
-    # the loop reduces the state, so a start 1000 turns further on gives the same
-    # reduced trajectory; unreduced, sin at angles of ~6e3 would lose ~1e-12 per step
-    rotor = gvi.LagrangianSystem(w**2 / 2 + 0.3 * sp.cos(th), [th], [w])
-    integrator = gvi.Integrator(rotor, gvi.Galerkin(2))
-    near = integrator.integrate([0.5], v0=[2.0], h=0.05, n_steps=5_000)
-    shift = 2 * np.pi * 1000
-    far = integrator.integrate([0.5 + shift], v0=[2.0], h=0.05, n_steps=5_000)
-    # the only difference is the rounding of the start, |d0| ~ ulp(6e3) = 1e-12, carried
-    # along and amplified (phase error growing linearly) by at most ~40x over this run
-    d0 = max(abs(far.q_reduced[0, 0] - near.q_reduced[0, 0]), 1e-16)
-    assert d0 < 1e-12
-    np.testing.assert_allclose(far.q_reduced, near.q_reduced, rtol=0, atol=100 * d0)
-    np.testing.assert_allclose(far.p, near.p, rtol=0, atol=100 * d0)
-    np.testing.assert_allclose(far.q - shift, near.q, rtol=0, atol=1e-9)
+def test_an_unconverged_solve_says_why_and_bad_input_is_named():
+    orbit = gvi.solve_periodic(PENDULUM, gvi.Galerkin(2), [0.9], [0.0], 6.0, 20,
+                               energy=-np.cos(1.0), maxiter=1)  # fmt: skip
+    assert orbit.status == ActionStatus.MAX_ITERATIONS and not orbit.success
+    assert not orbit.trajectory.success and np.isfinite(orbit.period)
+    with pytest.raises(ValueError, match="period must be a positive number"):
+        gvi.solve_periodic(PENDULUM, gvi.Galerkin(2), [0.9], [0.0], -1.0, 20)
+    with pytest.raises(ValueError, match="n_steps must be an int >= 2"):
+        gvi.solve_periodic(PENDULUM, gvi.Galerkin(2), [0.9], [0.0], 6.0, 1)
+    with pytest.raises(ValueError, match=r"symmetries\[0\] must have 1 components"):
+        gvi.solve_periodic(PENDULUM, gvi.Galerkin(2), [0.9], [0.0], 6.0, 20, symmetries=[[1, 0]])
+    t = sp.Symbol("t")
+    driven = gvi.LagrangianSystem(w**2 / 2 + sp.cos(th) * sp.cos(t), [th], [w], t=t)
+    with pytest.raises(ValueError, match="energy: an orbit of given energy needs an autonomous"):
+        gvi.solve_periodic(driven, gvi.Galerkin(2), [0.9], [0.0], 6.0, 20, energy=0.0)
+    x, y, vx, vy = sp.symbols("x y vx vy")
+    circle = gvi.LagrangianSystem(
+        (vx**2 + vy**2) / 2, [x, y], [vx, vy], constraints=[x**2 + y**2 - 1]
+    )
+    with pytest.raises(ValueError, match="constraints or contacts are not supported"):
+        gvi.solve_periodic(circle, gvi.Galerkin(2), [1.0, 0.0], [0.0, 1.0], 6.0, 20)

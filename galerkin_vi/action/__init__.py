@@ -3,9 +3,18 @@
 The discrete action :math:`S_d = \\sum_k L_d(q_k, q_{k+1}, h)` of a whole path,
 with its exact derivatives (:mod:`.elements`), made stationary at once by
 Newton's method on a condensed, banded system (:mod:`.condensation`):
-:func:`solve_bvp` for two-point boundary-value problems.
+:func:`solve_bvp` for two-point boundary-value problems, :func:`solve_periodic`
+for periodic orbits (:mod:`.periodic`).
 """
 
 from .bvp import ActionStatus, BoundaryValueResult, solve_bvp
+from .periodic import PeriodicOrbit, follow_family, solve_periodic
 
-__all__ = ["ActionStatus", "BoundaryValueResult", "solve_bvp"]
+__all__ = [
+    "ActionStatus",
+    "BoundaryValueResult",
+    "PeriodicOrbit",
+    "follow_family",
+    "solve_bvp",
+    "solve_periodic",
+]
