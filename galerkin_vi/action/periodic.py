@@ -209,8 +209,10 @@ def solve_periodic(
         A state on (or near) the orbit; the first guess of the path is the
         time-stepping run from it over one period. Or ``q_guess`` a
         :class:`Trajectory` over one period (its positions are interpolated
-        at the control points), or a :class:`PeriodicOrbit` (its control
-        points, with the same N and degree: continuation), and ``v_guess`` None.
+        at the control points), a callable ``q(t)`` on :math:`[0, T]` (a
+        closed curve drawn by hand will do), or a :class:`PeriodicOrbit`
+        (its control points, with the same N and degree: continuation); then
+        ``v_guess`` None.
     period : float
         The period; with ``energy``, its first guess.
     n_steps : int
@@ -262,8 +264,17 @@ def solve_periodic(
         if v_guess is not None:
             raise ValueError("v_guess must be None when q_guess is a PeriodicOrbit")
         q_guess = q_guess if q_guess.control_points.shape == (N, s + 1, n) else q_guess.trajectory
+    h = T / N
+    times = h * np.arange(N)[:, None] + cycle.tables.d[None, :] * h
     if isinstance(q_guess, PeriodicOrbit):
         X0 = q_guess.control_points
+    elif callable(q_guess):
+        if v_guess is not None:
+            raise ValueError("v_guess must be None when q_guess is a callable q(t)")
+        X0 = np.array([np.asarray(q_guess(t), dtype=float) for t in times.ravel()])
+        if X0.shape != (times.size, n):
+            raise ValueError(f"q_guess(t) must return {n} coordinates, got shape {X0.shape[1:]}")
+        X0 = X0.reshape(N, s + 1, n)
     elif isinstance(q_guess, Trajectory):
         if v_guess is not None:
             raise ValueError("v_guess must be None when q_guess is a Trajectory")
@@ -276,9 +287,7 @@ def solve_periodic(
                              f"{v0.shape}")  # fmt: skip
         run = Integrator(system, method).integrate(q0, v0=v0, h=T / N, n_steps=N, params=params)
         guess_t, guess_q = run.t - run.t[0], run.q
-    if not isinstance(q_guess, PeriodicOrbit):
-        h = T / N
-        times = h * np.arange(N)[:, None] + cycle.tables.d[None, :] * h
+    if not (isinstance(q_guess, PeriodicOrbit) or callable(q_guess)):
         X0 = np.stack([np.interp(times, guess_t * (T / guess_t[-1]), guess_q[:, a])
                        for a in range(n)], axis=-1)  # fmt: skip
     z = cycle.at_points(X0)
