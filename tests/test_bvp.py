@@ -107,6 +107,27 @@ def test_the_catenary_is_cosh_with_its_length_and_functional():
     assert res.path_integral(sp.sqrt(1 + vy**2)) == pytest.approx(2 * np.sinh(1.0), abs=1e-12)
 
 
+def test_the_brachistochrone_is_a_cycloid_with_its_descent_time():
+    # "time" is x, y measured down from the start at rest: T[y] = int sqrt((1 + y'^2)/(2 g y)) dx,
+    # stationary on the cycloid x = a (th - sin th), y = a (1 - cos th), T = sqrt(a/g) dth
+    x, y, vy = sp.symbols("x y vy")
+    g, a, th1, th2 = 9.81, 1.0, 1.0, 4.0
+    system = gvi.LagrangianSystem(sp.sqrt((1 + vy**2) / (2 * g * y)), [y], [vy], t=x)
+    ends = [a * (th - np.sin(th)) for th in (th1, th2)]
+    errors = []
+    for N in (128, 256):
+        res = gvi.solve_bvp(system, gvi.Galerkin(3), [a * (1 - np.cos(th1))],
+                            [a * (1 - np.cos(th2))], ends, N)  # fmt: skip
+        assert res.success
+        # the cycloid's parameter at each node, by Newton on x(th) = x_k
+        th = np.full(N + 1, 2.0)
+        for _ in range(60):
+            th -= (a * (th - np.sin(th)) - res.trajectory.t) / (a * (1 - np.cos(th)))
+        errors.append(np.abs(res.trajectory.q[:, 0] - a * (1 - np.cos(th))).max())
+        assert res.action == pytest.approx(np.sqrt(a / g) * (th2 - th1), abs=1e-9)
+    assert np.log2(errors[0] / errors[1]) > 5.5  # order 6 (measured 5.9)
+
+
 def test_a_damped_oscillator_through_discrete_lagrange_dalembert():
     c, T, q0, q1 = 0.4, 3.0, 1.0, -0.2
     damped = gvi.LagrangianSystem(v**2 / 2 - q**2 / 2, [q], [v], forces=[-c * v])

@@ -27,6 +27,7 @@ RUNS = {
     "rimless_wheel.py": (["--seconds", "0.6"], "closed form: omega-"),
     "pendulum_bvp.py": ([], "nodal slopes"),
     "figure_eight.py": ([], "the Newton iteration converged"),
+    "catenary_brachistochrone.py": ([], "nodal slopes"),
 }
 
 

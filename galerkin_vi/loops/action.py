@@ -22,6 +22,7 @@ import numpy as np
 
 from ._jit import driver, kernel
 from .common import interpolate
+from .general import assemble_gradient
 from .linalg import (
     add_dense_block,
     band_lu_backward,
@@ -30,7 +31,7 @@ from .linalg import (
     lu_factor_inplace,
     lu_solve_inplace,
 )
-from .point import lagrangian, point_gradient, point_hessian
+from .point import lagrangian, point_hessian
 from .traits import HAS_FV, HAS_LQV
 
 __all__ = ["stationary_path"]
@@ -46,19 +47,18 @@ STATUS_NO_DESCENT = 4
 def element_residual(fn, t0, h, Xk, prm, b, c, Phi, D, C, Q, V, Lq, Lv, G):
     r""":math:`G^\nu_a` of one element (shape (s + 1, n)) at its control points ``Xk``."""
     s1, n = Xk.shape
-    inv_h = 1.0 / h
     for nu in range(s1):
         for a in range(n):
             C[nu, a] = Xk[nu, a] - Xk[0, a]
-            G[nu, a] = 0.0
-    for i in range(b.shape[0]):
-        interpolate(i, inv_h, Xk[0], C, Phi, D, Q, V)
-        point_gradient(fn, t0 + c[i] * h, Q, V, prm, Lq, Lv)
-        for nu in range(s1):
-            wq = b[i] * h * Phi[i, nu]
-            wv = b[i] * D[i, nu]
-            for a in range(n):
-                G[nu, a] += wq * Lq[a] + wv * Lv[a]
+    assemble_gradient(fn, t0, h, Xk[0], C, prm, b, c, Phi, D, Q, V, Lq, Lv, G)
+
+
+@kernel
+def point_work(n):
+    """Work arrays of the point functions: Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv (dense storage)."""
+    nn = n * n
+    return (np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(nn), np.zeros(nn),
+            np.zeros(nn), np.zeros(nn))  # fmt: skip
 
 
 @kernel
@@ -208,13 +208,7 @@ def node_velocities(fn, t_nodes, h, X, P, slope_start, slope_end, prm, W):
     :math:`O(h^s)` from the answer: a few iterations reach round-off.
     """
     N, s1, n = X.shape
-    nn = n * n
-    Lq = np.zeros(n)
-    Lv = np.zeros(n)
-    Lqq = np.zeros(nn)
-    Lqv = np.zeros(nn)
-    Lvv = np.zeros(nn)
-    Fv = np.zeros(nn)
+    _, _, Lq, Lv, Lqq, Lqv, Lvv, Fv = point_work(n)
     A = np.zeros((n, n))
     piv = np.zeros(n, dtype=np.int64)
     r = np.zeros(n)
@@ -266,15 +260,7 @@ def stationary_path(
     w2 = 2 * n
     has_lqv = traits[HAS_LQV] != 0
     has_fv = traits[HAS_FV] != 0
-    nn = n * n
-    Q = np.zeros(n)
-    V = np.zeros(n)
-    Lq = np.zeros(n)
-    Lv = np.zeros(n)
-    Lqq = np.zeros(nn)
-    Lqv = np.zeros(nn)
-    Lvv = np.zeros(nn)
-    Fv = np.zeros(nn)
+    Q, V, Lq, Lv, Lqq, Lqv, Lvv, Fv = point_work(n)
     C = np.zeros((s1, n))
     G = np.zeros((s1, n))
     H = np.zeros((s1 * n, s1 * n))
