@@ -70,6 +70,16 @@ def hermite(
     confluent divided differences :math:`f[t_j, t_j] = y'_j`, then the usual
     recursion, evaluated by Horner's rule with its derivative.
     """
+    z, coef = hermite_coefficients(nodes, values, slopes)
+    return hermite_evaluate(z, coef, t)
+
+
+def hermite_coefficients(nodes: NDArray, values: NDArray, slopes: NDArray):
+    """Newton coefficients of :func:`hermite`'s interpolants: (z (m, 2N), coef (m, 2N, n)).
+
+    Computed once per stencil, they serve every query point in its interval
+    (:meth:`DenseOutput.state` groups the points by stencil).
+    """
     m, N, n = values.shape
     z = np.repeat(nodes, 2, axis=1)  # (m, 2N)
     # column k of the table holds f[z_i, ..., z_{i+k}]; updated in place, top down
@@ -85,10 +95,15 @@ def hermite(
             new[:, 0::2] = slopes
         table = new
         coef[:, k] = table[:, 0]
+    return z, coef
+
+
+def hermite_evaluate(z: NDArray, coef: NDArray, t: NDArray) -> tuple[NDArray, NDArray]:
+    """The interpolants of :func:`hermite_coefficients` and their derivatives at ``t`` (m,)."""
     x = t[:, None]
     y = coef[:, -1].copy()
     dy = np.zeros_like(y)
-    for k in range(2 * N - 2, -1, -1):
+    for k in range(z.shape[1] - 2, -1, -1):
         step = x - z[:, k : k + 1]
         dy = dy * step + y
         y = y * step + coef[:, k]
@@ -167,7 +182,10 @@ class DenseOutput:
         size = min(self.stencil, len(self.t))
         # the stencil's nodes around the interval [t_k, t_k+1], shifted inwards at the ends
         first = np.clip(k - (size - 1) // 2, 0, len(self.t) - size)
-        index = first[:, None] + np.arange(size)
-        y, dy = hermite(self.t[index], self.q[index], self.v[index], flat)
+        # one Newton table per stencil, shared by the query points that use it
+        stencils, which = np.unique(first, return_inverse=True)
+        index = stencils[:, None] + np.arange(size)
+        z, coef = hermite_coefficients(self.t[index], self.q[index], self.v[index])
+        y, dy = hermite_evaluate(z[which], coef[which], flat)
         shape = times.shape + (self.q.shape[1],)
         return y.reshape(shape), dy.reshape(shape)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import sympy as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import galerkin_vi as gvi
 from galerkin_vi.action import ActionStatus
@@ -63,6 +65,32 @@ def test_the_path_is_the_time_stepping_solution_from_its_first_momentum():
     )
     np.testing.assert_allclose(traj.q, res.trajectory.q, rtol=0, atol=1e-11)
     np.testing.assert_allclose(traj.p, res.trajectory.p, rtol=0, atol=1e-11)
+
+
+@settings(max_examples=12, deadline=None)
+@given(
+    degree=st.integers(1, 4),
+    span=st.floats(0.3, 1.0),
+    ends=st.tuples(st.floats(-1.0, 1.0), st.floats(-1.0, 1.0)),
+    stiffness=st.floats(0.0, 1.0),
+)
+def test_every_stationary_path_is_a_time_stepping_trajectory(degree, span, ends, stiffness):
+    # L = v^2/2 + cos q - k q^4/4 (a pendulum with a hardening spring), spans short of the
+    # first conjugate point (frequencies up to 2 for |q| <= 1, so pi/2 > 1; longer spans can have no
+    # solution near the straight line: q(0) = 0, q(2) = 1 at k = 1 has none, scipy's
+    # solve_bvp fails there too): stepping forward from the path's first node and momentum
+    # retraces its nodes (the same discrete equations)
+    system = gvi.LagrangianSystem(v**2 / 2 + sp.cos(q) - stiffness * q**4 / 4, [q], [v])
+    method = gvi.Galerkin(degree)
+    N = 20
+    res = gvi.solve_bvp(system, method, [ends[0]], [ends[1]], (0.0, span), N)
+    assert res.success, res.message
+    assert res.residual < 1e-12
+    traj = gvi.Integrator(system, method).integrate(
+        [ends[0]], p0=res.trajectory.p[0], h=span / N, n_steps=N
+    )
+    np.testing.assert_allclose(traj.q, res.trajectory.q, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(traj.p, res.trajectory.p, rtol=0, atol=1e-10)
 
 
 def test_a_great_circle_through_the_sphere_constraint():
