@@ -5,9 +5,11 @@ from __future__ import annotations
 from .action import (
     ActionStatus,
     BoundaryValueResult,
+    OptimalControl,
     PeriodicOrbit,
     follow_family,
     solve_bvp,
+    solve_optimal_control,
     solve_periodic,
 )
 from .adaptive import AdaptiveIntegrator, AdaptiveTrajectory, PoincareTransform, encounter_scaling
@@ -46,6 +48,7 @@ __all__ = [
     "LagrangianSystem",
     "MethodChoice",
     "OrderReductionWarning",
+    "OptimalControl",
     "OrderResult",
     "PeriodicOrbit",
     "PoincareTransform",
@@ -60,6 +63,7 @@ __all__ = [
     "gauss_lobatto",
     "measure_order",
     "solve_bvp",
+    "solve_optimal_control",
     "solve_periodic",
 ]
 
