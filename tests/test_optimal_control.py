@@ -120,3 +120,21 @@ def test_bad_input_is_named():
     in_lagrangian = gvi.LagrangianSystem(v**2 / 2 + u * q, [q], [v], params={u: 0.0})
     with pytest.raises(ValueError, match="through the forces only"):
         gvi.solve_optimal_control(in_lagrangian, method, [u], u**2, (0, 1), 4, [0.0], [1.0])
+
+
+def test_a_cart_pole_swings_up():
+    # underactuated and nonlinear: the force acts on the cart, the pole goes from hanging to
+    # upright in 2 s; the converged optimum is 58.8076675 (benchmarks/cart_pole.py, where
+    # CasADi + IPOPT Hermite-Simpson collocation converges to the same value)
+    x, th, vx, w = sp.symbols("x theta vx w")
+    mc, mp, length, g = 1.0, 0.3, 0.5, 9.81
+    kinetic = (mc + mp) * vx**2 / 2 + mp * length * vx * w * sp.cos(th) + mp * length**2 * w**2 / 2
+    system = gvi.LagrangianSystem(kinetic + mp * g * length * sp.cos(th), [x, th], [vx, w],
+                                  forces=[u, 0], params={u: 0.0})  # fmt: skip
+    res = gvi.solve_optimal_control(system, gvi.Galerkin(3), [u], u**2, (0.0, 2.0), 40,
+                                    [0.0, 0.0], [1.0, np.pi], [0.0, 0.0], [0.0, 0.0],
+                                    control_bounds=(-20.0, 20.0))  # fmt: skip
+    assert res.success and res.constraint_violation < 1e-12
+    assert res.cost == pytest.approx(58.8076675, abs=1e-4)  # measured error 4.9e-5 at N = 40
+    np.testing.assert_allclose(res.trajectory.q[-1], [1.0, np.pi], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(res.trajectory.p[-1], [0.0, 0.0], rtol=0, atol=1e-10)
