@@ -104,6 +104,23 @@ def test_state_bounds_hold_at_every_control_point():
     assert capped.cost > free.cost + 0.3  # measured 2.376
 
 
+@pytest.mark.parametrize("bounded", [False, True])
+def test_ipopt_solves_the_same_program(bounded):
+    pytest.importorskip("casadi")
+    system = gvi.LagrangianSystem(v**2 / 2, [q], [v], forces=[u], params={u: 0.0})
+    bounds = (-5.0, 5.0) if bounded else None
+    runs = [
+        gvi.solve_optimal_control(system, gvi.Galerkin(2), [u], u**2 / 2, (0.0, 1.0), 16, [0.0],
+                                  [1.0], [0.0], [0.0], control_bounds=bounds, solver=solver,
+                                  tol=1e-12)
+        for solver in ("trust-constr", "ipopt")
+    ]  # fmt: skip
+    assert all(r.success for r in runs)
+    assert runs[0].cost == pytest.approx(runs[1].cost, abs=1e-8)
+    np.testing.assert_allclose(runs[0].controls, runs[1].controls, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(runs[0].multipliers, runs[1].multipliers, rtol=0, atol=1e-5)
+
+
 def test_bad_input_is_named():
     system = gvi.LagrangianSystem(v**2 / 2, [q], [v], forces=[u], params={u: 0.0})
     method = gvi.Galerkin(2)
@@ -117,6 +134,9 @@ def test_bad_input_is_named():
     with pytest.raises(ValueError, match="state_bounds: lower"):
         gvi.solve_optimal_control(system, method, [u], u**2, (0, 1), 4, [0.0], [1.0],
                                   state_bounds=(1.0, 0.0))  # fmt: skip
+    with pytest.raises(ValueError, match="solver must be 'trust-constr' or 'ipopt'"):
+        gvi.solve_optimal_control(system, method, [u], u**2, (0, 1), 4, [0.0], [1.0],
+                                  solver="snopt")  # fmt: skip
     in_lagrangian = gvi.LagrangianSystem(v**2 / 2 + u * q, [q], [v], params={u: 0.0})
     with pytest.raises(ValueError, match="through the forces only"):
         gvi.solve_optimal_control(in_lagrangian, method, [u], u**2, (0, 1), 4, [0.0], [1.0])

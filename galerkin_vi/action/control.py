@@ -317,6 +317,7 @@ def solve_optimal_control(
     params=None,
     tol: float = 1e-10,
     maxiter: int = 1000,
+    solver: str = "trust-constr",
 ) -> OptimalControl:
     r"""Controls and path that minimise a running cost subject to the discrete mechanics.
 
@@ -343,8 +344,14 @@ def solve_optimal_control(
     params : mapping, optional
         Values of the other parameters.
     tol, maxiter
-        Passed to :func:`scipy.optimize.minimize` (``trust-constr``: ``gtol``,
-        ``xtol``) as its stopping tolerances and iteration limit.
+        The solver's stopping tolerance (``trust-constr``: ``gtol`` and
+        ``xtol``; IPOPT: ``tol``) and iteration limit.
+    solver : {"trust-constr", "ipopt"}
+        ``"trust-constr"``: SciPy, with the exact sparse Jacobian and Hessian
+        above. ``"ipopt"``: IPOPT through CasADi (``pip install casadi``): the
+        same discrete equations and cost written as CasADi expressions (the
+        SymPy pieces printed for CasADi), differentiated exactly by its
+        automatic differentiation, sparse.
 
     Returns
     -------
@@ -408,6 +415,11 @@ def solve_optimal_control(
     ):
         if bounds is not None:
             constraints.append(_box(name, bounds, first, count, width, problem.size))
+    if solver == "ipopt":
+        return _result(problem, _ipopt(problem, controls, cost, x0, control_bounds, state_bounds,
+                                       tol, maxiter))  # fmt: skip
+    if solver != "trust-constr":
+        raise ValueError(f"solver must be 'trust-constr' or 'ipopt', got {solver!r}")
     # with bounds, trust-constr's interior point: started with a small barrier and a wide
     # region (the bounded double integrator: 100 iterations against 1000 unconverged)
     barrier = {"initial_barrier_parameter": 1e-2, "initial_tr_radius": 10.0}
@@ -425,6 +437,85 @@ def solve_optimal_control(
             options={"gtol": tol, "xtol": tol, "maxiter": maxiter, **barrier},
         )  # fmt: skip
     return _result(problem, solution)
+
+
+_CASADI_FUNCTIONS = ("sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "exp",
+                     "log", "sqrt")  # fmt: skip
+
+
+def _ipopt(problem: _Problem, controls, cost, x0, control_bounds, state_bounds, tol, maxiter):
+    """Solve the NLP with IPOPT: the residuals and cost as CasADi expressions of the unknowns."""
+    try:
+        import casadi as ca
+    except ImportError:
+        raise ImportError("solver='ipopt' needs casadi: pip install casadi") from None
+    from types import SimpleNamespace
+
+    system = problem.system
+    functions = {name: getattr(ca, name) for name in _CASADI_FUNCTIONS}
+    functions.update(Abs=ca.fabs, atan2=ca.atan2)
+    pieces = system.pieces
+    point = sp.lambdify(system.arguments, [*pieces.force, *pieces.Lv, cost],
+                        modules=[functions, "math"])  # fmt: skip
+    N, s, n, r, m = problem.N, problem.s, problem.n, problem.r, problem.m
+    t = problem.tables
+    h = problem.h
+    x = ca.SX.sym("x", problem.size)
+    X = [[None] * (s + 1) for _ in range(N)]
+    for k in range(N):
+        for nu in range(s + 1):
+            idx = problem.state_index[k, nu]
+            if idx[0] >= 0:
+                X[k][nu] = ca.vertcat(*[x[int(i)] for i in idx])
+            else:
+                X[k][nu] = ca.DM(problem.q_start if (k, nu) == (0, 0) else problem.q_end)
+    rows = [0] * problem.n_rows
+    row_of, sign = problem._row_of()
+    total = 0
+    for k in range(N):
+        G = [ca.SX.zeros(n) for _ in range(s + 1)]
+        for i in range(r):
+            q_i = sum(t.Phi[i, nu] * (X[k][nu] - X[k][0]) for nu in range(1, s + 1)) + X[k][0]
+            v_i = sum(t.D[i, nu] * (X[k][nu] - X[k][0]) for nu in range(1, s + 1)) / h
+            prm = list(problem.prm)
+            for j, slot in enumerate(problem.control_slots):
+                prm[slot] = x[int(problem.control_index[k, i, j])]
+            values = point(problem.t_nodes[k] + t.c[i] * h, *[q_i[a] for a in range(n)],
+                           *[v_i[a] for a in range(n)], *prm)  # fmt: skip
+            force, lv, c_i = ca.vertcat(*values[:n]), ca.vertcat(*values[n : 2 * n]), values[-1]
+            total += h * t.b[i] * c_i
+            for nu in range(s + 1):
+                G[nu] += h * t.b[i] * t.Phi[i, nu] * force + t.b[i] * t.D[i, nu] * lv
+        for nu in range(s + 1):
+            for a in range(n):
+                row = int(row_of[k, nu, a])
+                if row >= 0:
+                    rows[row] = rows[row] + sign[k, nu, a] * G[nu][a]
+    c = ca.vertcat(*rows)
+    if problem.p_start is not None:
+        c[problem.n_states : problem.n_states + n] -= problem.p_start
+    if problem.p_end is not None:
+        c[problem.n_rows - n :] -= problem.p_end
+    lower = np.full(problem.size, -np.inf)
+    upper = np.full(problem.size, np.inf)
+    for bounds, first, count, width in (
+        (control_bounds, problem.n_states, problem.n_controls, m),
+        (state_bounds, 0, problem.n_states, n),
+    ):
+        if bounds is not None:
+            lo, hi = (np.broadcast_to(np.asarray(b, dtype=float), (width,)) for b in bounds)
+            lower[first : first + count] = np.tile(lo, count // width)
+            upper[first : first + count] = np.tile(hi, count // width)
+    nlp = ca.nlpsol("dmoc", "ipopt", {"x": x, "f": total, "g": c},
+                    {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "tol": tol,
+                                                    "max_iter": maxiter}})  # fmt: skip
+    out = nlp(x0=x0, lbx=lower, ubx=upper, lbg=0.0, ubg=0.0)
+    stats = nlp.stats()
+    return SimpleNamespace(
+        x=np.asarray(out["x"]).ravel(), v=[np.asarray(out["lam_g"]).ravel()],
+        status=1 if stats["success"] else 0, nit=stats.get("iter_count", 0),
+        message=stats["return_status"],
+    )  # fmt: skip
 
 
 def _box(name: str, bounds, first: int, count: int, width: int, size: int):
