@@ -28,6 +28,7 @@ RUNS = {
     "pendulum_bvp.py": ([], "nodal slopes"),
     "figure_eight.py": ([], "the Newton iteration converged"),
     "catenary_brachistochrone.py": ([], "nodal slopes"),
+    "cart_pole_swing_up.py": ([], "largest |u|"),
 }
 
 
