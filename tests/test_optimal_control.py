@@ -73,6 +73,25 @@ def test_states_controls_costates_and_cost_converge_at_the_methods_order(degree)
     assert np.all(np.abs(slopes - 2 * degree) < 0.3), slopes
 
 
+def test_free_ends_take_their_natural_conditions():
+    system = gvi.LagrangianSystem(v**2 / 2, [q], [v], forces=[u], params={u: 0.0})
+    method = gvi.Galerkin(2)
+    # to q(1) = 1 from rest, the final speed free: the costate vanishes there, u = 3 (1 - t),
+    # cost 3/2, arriving with p = 3/2
+    speed_free = gvi.solve_optimal_control(system, method, [u], u**2 / 2, (0.0, 1.0), 8, [0.0],
+                                           [1.0], [0.0], None, tol=1e-12)  # fmt: skip
+    assert speed_free.success and speed_free.cost == pytest.approx(1.5, abs=1e-9)
+    np.testing.assert_allclose(speed_free.controls[..., 0], 3 * (1 - speed_free.control_times),
+                               rtol=0, atol=1e-6)  # fmt: skip
+    assert speed_free.trajectory.p[-1, 0] == pytest.approx(1.5, abs=1e-9)
+    # to speed 1 from rest, wherever it gets: u = 1, cost 1/2, at q(1) = 1/2
+    place_free = gvi.solve_optimal_control(system, method, [u], u**2 / 2, (0.0, 1.0), 8, [0.0],
+                                           None, [0.0], [1.0], tol=1e-12)  # fmt: skip
+    assert place_free.success and place_free.cost == pytest.approx(0.5, abs=1e-9)
+    np.testing.assert_allclose(place_free.controls, 1.0, rtol=0, atol=1e-6)
+    assert place_free.trajectory.q[-1, 0] == pytest.approx(0.5, abs=1e-9)
+
+
 def test_control_bounds_saturate_the_control():
     # |u| <= 5: u = 5 until t1 = (1 - sqrt(0.6))/2, then linear to -5 at 1 - t1, then -5;
     # cost 25 t1 + 25 (1 - 2 t1)/6 (the kinks cost the method its order)

@@ -101,21 +101,35 @@ class _Problem:
         names = list(system.params)
         self.control_slots = [names.index(u) for u in controls]
         s, n = self.s, self.n
-        # free control points: nodes 1..N-1, then every element's interior points
+        # unknown points: nodes 1..N-1, every element's interior points, then the end
+        # nodes whose positions are free; each of the first (core) has its equation row
         point = -np.ones((N, s + 1), dtype=np.int64)
         point[1:, 0] = np.arange(N - 1)
         point[:-1, s] = np.arange(N - 1)
         point[:, 1:s] = (N - 1) + np.arange(N * (s - 1)).reshape(N, s - 1)
+        core = (N - 1) + N * (s - 1)
+        extra = core
+        if q_start is None:
+            point[0, 0], extra = extra, extra + 1
+        if q_end is None:
+            point[N - 1, s], extra = extra, extra + 1
         self.point = point
-        self.n_points = (N - 1) + N * (s - 1)
+        self.n_points = extra
+        self.n_core_rows = core * n
         self.n_states = self.n_points * n
         self.n_controls = N * self.r * self.m
         self.size = self.n_states + self.n_controls
         a = np.arange(n)
         self.state_index = np.where(point[..., None] >= 0, point[..., None] * n + a, -1)
         self.control_index = self.n_states + np.arange(self.n_controls).reshape(N, self.r, self.m)
-        # rows: the free points' equations, then p_0 and p_N where prescribed
-        self.n_rows = self.n_states + n * ((p_start is not None) + (p_end is not None))
+        # rows: the core points' equations, then p_0 and p_N where prescribed
+        self.p_start_rows = self.p_end_rows = None
+        at = self.n_core_rows
+        if p_start is not None:
+            self.p_start_rows, at = at + a, at + n
+        if p_end is not None:
+            self.p_end_rows, at = at + a, at + n
+        self.n_rows = at
         self._hessian_pieces(controls, cost)
 
     # -------------------------------------------------------------- layout
@@ -124,7 +138,10 @@ class _Problem:
         X = np.empty((N, s + 1, n))
         free = self.state_index >= 0
         X[free] = x[self.state_index[free]]
-        X[0, 0], X[-1, s] = self.q_start, self.q_end
+        if self.q_start is not None:
+            X[0, 0] = self.q_start
+        if self.q_end is not None:
+            X[-1, s] = self.q_end
         U = x[self.n_states :].reshape(N, self.r, self.m)
         return X, U
 
@@ -146,27 +163,27 @@ class _Problem:
 
     def _rows(self, G: NDArray) -> NDArray:
         c = np.zeros(self.n_rows)
-        free = self.state_index >= 0
-        np.add.at(c, self.state_index[free], G[free])
-        at = self.n_states
+        rows, sign = self._row_of()
+        keep = rows >= 0
+        np.add.at(c, rows[keep], (sign * G)[keep])
         if self.p_start is not None:
-            c[at : at + self.n] = -G[0, 0] - self.p_start
-            at += self.n
+            c[self.p_start_rows] -= self.p_start
         if self.p_end is not None:
-            c[at : at + self.n] = G[-1, -1] - self.p_end
+            c[self.p_end_rows] -= self.p_end
         return c
 
-    def _row_of(self) -> NDArray:
-        """Row of each (element, point, coordinate) entry of G, with its sign; -1: none."""
-        N, s, n = self.N, self.s, self.n
-        rows = self.state_index.copy()
+    def _row_of(self) -> tuple[NDArray, NDArray]:
+        """Row of each (element, point, coordinate) entry of G, with its sign; -1: none.
+
+        The end nodes' entries are the discrete Legendre transforms: rows of the
+        prescribed momenta (:math:`-G_0^0 = p_0`, :math:`G_{N-1}^s = p_N`), or none.
+        """
+        N, s = self.N, self.s
+        rows = np.where(self.state_index >= 0, self.state_index, -1)
         sign = np.ones(rows.shape)
-        at = self.n_states
-        if self.p_start is not None:
-            rows[0, 0], sign[0, 0] = at + np.arange(n), -1.0
-            at += n
-        if self.p_end is not None:
-            rows[N - 1, s], sign[N - 1, s] = at + np.arange(n), 1.0
+        rows[0, 0] = self.p_start_rows if self.p_start is not None else -1
+        sign[0, 0] = -1.0
+        rows[N - 1, s] = self.p_end_rows if self.p_end is not None else -1
         return rows, sign
 
     def constraint_jacobian(self, x: NDArray):
@@ -307,8 +324,8 @@ def solve_optimal_control(
     cost: sp.Expr,
     t_span: tuple[float, float],
     n_steps: int,
-    q_start: ArrayLike,
-    q_end: ArrayLike,
+    q_start: ArrayLike | None,
+    q_end: ArrayLike | None,
     p_start: ArrayLike | None = None,
     p_end: ArrayLike | None = None,
     *,
@@ -333,10 +350,11 @@ def solve_optimal_control(
         Running cost :math:`C(t, q, v, u)`.
     t_span, n_steps
         The horizon and the number of elements N.
-    q_start, q_end : array_like, shape (n,)
-        Positions at both ends (fixed).
+    q_start, q_end : array_like, shape (n,), or None
+        Positions at the ends; None leaves that end's position free.
     p_start, p_end : array_like, shape (n,), optional
-        Momenta at the ends (discrete Legendre transforms), where prescribed.
+        Momenta at the ends (discrete Legendre transforms), where prescribed;
+        a free end without a momentum is left to the optimum.
     control_bounds : (lower, upper), optional
         Bounds on every control, each an array of shape (m,).
     state_bounds : (lower, upper), optional
@@ -400,7 +418,11 @@ def solve_optimal_control(
     # first guess: the straight line in time, zero controls
     times = problem.t_nodes[:-1, None] + problem.tables.d[None, :] * problem.h
     fraction = (times - t0) / (t1 - t0)
-    X0 = problem.q_start + fraction[..., None] * (problem.q_end - problem.q_start)
+    first = problem.q_start if problem.q_start is not None else problem.q_end
+    last = problem.q_end if problem.q_end is not None else first
+    first = first if first is not None else np.zeros(n)
+    last = last if last is not None else first
+    X0 = first + fraction[..., None] * (last - first)
     x0 = np.zeros(problem.size)
     free = problem.state_index >= 0
     x0[problem.state_index[free]] = X0[free]
@@ -467,7 +489,7 @@ def _ipopt(problem: _Problem, controls, cost, x0, control_bounds, state_bounds, 
             idx = problem.state_index[k, nu]
             if idx[0] >= 0:
                 X[k][nu] = ca.vertcat(*[x[int(i)] for i in idx])
-            else:
+            else:  # a fixed end
                 X[k][nu] = ca.DM(problem.q_start if (k, nu) == (0, 0) else problem.q_end)
     rows = [0] * problem.n_rows
     row_of, sign = problem._row_of()
@@ -491,11 +513,11 @@ def _ipopt(problem: _Problem, controls, cost, x0, control_bounds, state_bounds, 
                 row = int(row_of[k, nu, a])
                 if row >= 0:
                     rows[row] = rows[row] + sign[k, nu, a] * G[nu][a]
+    for at, value in ((problem.p_start_rows, problem.p_start), (problem.p_end_rows, problem.p_end)):
+        if value is not None:
+            for a in range(n):
+                rows[int(at[a])] = rows[int(at[a])] - value[a]
     c = ca.vertcat(*rows)
-    if problem.p_start is not None:
-        c[problem.n_states : problem.n_states + n] -= problem.p_start
-    if problem.p_end is not None:
-        c[problem.n_rows - n :] -= problem.p_end
     lower = np.full(problem.size, -np.inf)
     upper = np.full(problem.size, np.inf)
     for bounds, first, count, width in (
