@@ -22,6 +22,7 @@ the nodes need not be equally spaced (adaptive runs, a final landing step).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -29,6 +30,11 @@ from numpy.typing import ArrayLike, NDArray
 from .system import LagrangianSystem
 
 __all__ = ["DenseOutput", "hermite", "stencil_nodes"]
+
+#: dense outputs of at most this many nodes keep the Newton tables of all their stencils
+#: (computed on the first call; about 2 stencil x n numbers per node): repeated calls on
+#: a short run then only evaluate
+_CACHED_STENCILS = 4096
 
 
 def stencil_nodes(order: int) -> int:
@@ -147,6 +153,13 @@ class DenseOutput:
     def t_max(self) -> float:
         return float(max(self.t[0], self.t[-1]))
 
+    @cached_property
+    def _tables(self) -> tuple[NDArray, NDArray]:
+        """The Newton tables of every stencil (first node 0 .. len(t) - size)."""
+        size = min(self.stencil, len(self.t))
+        index = np.arange(len(self.t) - size + 1)[:, None] + np.arange(size)
+        return hermite_coefficients(self.t[index], self.q[index], self.v[index])
+
     def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
         """Positions at ``t``."""
         return self.state(t)[0]
@@ -182,10 +195,15 @@ class DenseOutput:
         size = min(self.stencil, len(self.t))
         # the stencil's nodes around the interval [t_k, t_k+1], shifted inwards at the ends
         first = np.clip(k - (size - 1) // 2, 0, len(self.t) - size)
-        # one Newton table per stencil, shared by the query points that use it
-        stencils, which = np.unique(first, return_inverse=True)
-        index = stencils[:, None] + np.arange(size)
-        z, coef = hermite_coefficients(self.t[index], self.q[index], self.v[index])
-        y, dy = hermite_evaluate(z[which], coef[which], flat)
+        if len(self.t) <= _CACHED_STENCILS:
+            # every stencil's Newton table, computed once per dense output
+            z, coef = self._tables
+            y, dy = hermite_evaluate(z[first], coef[first], flat)
+        else:
+            # one Newton table per stencil used, shared by the query points that use it
+            stencils, which = np.unique(first, return_inverse=True)
+            index = stencils[:, None] + np.arange(size)
+            z, coef = hermite_coefficients(self.t[index], self.q[index], self.v[index])
+            y, dy = hermite_evaluate(z[which], coef[which], flat)
         shape = times.shape + (self.q.shape[1],)
         return y.reshape(shape), dy.reshape(shape)
