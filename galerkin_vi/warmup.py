@@ -95,29 +95,29 @@ def _runs():
     ]
 
 
-#: compile seconds of each run on an idle 2-core machine (numba 0.68), in the order of
-#: :func:`_runs`: the parallel groups are balanced by them
+#: compile seconds of each run, two processes on a 2-core machine (numba 0.68, measured
+#: 2026-11-26), in the order of :func:`_runs`: the parallel groups are balanced by them
 RUN_SECONDS = (
-    7.0,
-    7.0,
-    9.1,
-    8.7,
-    4.2,
-    4.3,
-    4.7,
-    5.3,
-    3.7,
-    4.3,
-    7.6,
-    0.8,
-    0.5,
-    1.4,
-    0.5,
+    27.0,
+    27.0,
+    36.0,
+    35.0,
+    13.0,
+    14.0,
+    15.0,
+    18.0,
+    15.0,
+    17.0,
+    26.0,
+    3.0,
     1.3,
-    0.5,
-    1.1,
-    0.5,
-    20.0,
+    3.3,
+    1.5,
+    3.4,
+    2.3,
+    3.0,
+    1.5,
+    31.0,
 )
 
 
