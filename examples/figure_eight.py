@@ -22,25 +22,19 @@ import argparse
 import time
 
 import numpy as np
-import sympy as sp
 
 import galerkin_vi as gvi
+from galerkin_vi.problems import n_body
 
 PERIOD, ENERGY = 6.32591398292621, -1.287141995631852
 
 
 def three_bodies() -> tuple[gvi.LagrangianSystem, list]:
-    """The planar three-body Lagrangian and its symmetries (two translations, a rotation)."""
-    x, y = sp.symbols("x1:4"), sp.symbols("y1:4")
-    vx, vy = sp.symbols("vx1:4"), sp.symbols("vy1:4")
-    q = [c for i in range(3) for c in (x[i], y[i])]
-    v = [c for i in range(3) for c in (vx[i], vy[i])]
-    potential = sum(
-        1 / sp.sqrt((x[i] - x[j]) ** 2 + (y[i] - y[j]) ** 2) for i in range(3) for j in range(i)
-    )
-    system = gvi.LagrangianSystem(sum(c**2 for c in v) / 2 + potential, q, v)
-    rotation = [-y[0], x[0], -y[1], x[1], -y[2], x[2]]
-    return system, [[1, 0, 1, 0, 1, 0], [0, 1, 0, 1, 0, 1], rotation]
+    """Three unit masses, G = 1, unsoftened (the library's planar N-body problem), and the
+    generators of its symmetries: the translations in x and y and the rotation."""
+    problem = n_body(masses=(1.0, 1.0, 1.0), softening=0.0)
+    names = ("translation_x", "translation_y", "rotation")
+    return problem.system, [problem.symmetries[name] for name in names]
 
 
 def lemniscate(t: float) -> np.ndarray:

@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import galerkin_vi as gvi
+from galerkin_vi import dense
 from galerkin_vi.dense import hermite, stencil_nodes
 
 q, v = sp.symbols("q v")
@@ -88,6 +89,20 @@ def test_dense_output_passes_through_the_saved_states():
     np.testing.assert_allclose(traj.sol.momentum(traj.t), traj.p, rtol=0, atol=1e-13)
     assert traj.sol(0.5).shape == (1,) and traj.sol([0.5, 0.7]).shape == (2, 1)
     assert traj.sol(np.zeros((3, 2))).shape == (3, 2, 1)
+
+
+def test_long_runs_build_the_stencils_they_use_and_agree_bitwise(monkeypatch):
+    # runs beyond the cache size build only the Newton tables their query points need
+    integrator = gvi.Integrator(PENDULUM, gvi.Galerkin(3))
+    traj = integrator.integrate([1.5], [0.3], h=0.2, n_steps=40, dense_output=True)
+    t = np.linspace(0.0, 8.0, 333)
+    cached = traj.sol.state(t)
+    monkeypatch.setattr(dense, "_CACHED_STENCILS", 10)
+    fresh = gvi.Integrator(PENDULUM, gvi.Galerkin(3)).integrate(
+        [1.5], [0.3], h=0.2, n_steps=40, dense_output=True
+    )
+    for a, b in zip(cached, fresh.sol.state(t), strict=True):
+        np.testing.assert_array_equal(a, b)
 
 
 def test_dense_output_of_a_backward_run():

@@ -9,6 +9,7 @@ from scipy.special import ellipk
 
 import galerkin_vi as gvi
 from galerkin_vi.action import ActionStatus
+from galerkin_vi.problems import n_body
 
 th, w = sp.symbols("theta w")
 PENDULUM = gvi.LagrangianSystem(w**2 / 2 + sp.cos(th), [th], [w])
@@ -59,17 +60,10 @@ def test_the_border_multiplier_of_the_time_shift_vanishes_with_h():
 
 
 def _three_bodies():
-    x, y = sp.symbols("x1:4"), sp.symbols("y1:4")
-    vx, vy = sp.symbols("vx1:4"), sp.symbols("vy1:4")
-    q = [c for i in range(3) for c in (x[i], y[i])]
-    v = [c for i in range(3) for c in (vx[i], vy[i])]
-    potential = sum(
-        1 / sp.sqrt((x[i] - x[j]) ** 2 + (y[i] - y[j]) ** 2) for i in range(3) for j in range(i)
-    )
-    system = gvi.LagrangianSystem(sum(c**2 for c in v) / 2 + potential, q, v)
-    translations = [[1, 0, 1, 0, 1, 0], [0, 1, 0, 1, 0, 1]]
-    rotation = [-y[0], x[0], -y[1], x[1], -y[2], x[2]]
-    return system, [*translations, rotation]
+    """Three unit masses, G = 1, no softening: the library's planar N-body problem."""
+    problem = n_body(masses=(1.0, 1.0, 1.0), softening=0.0)
+    names = ("translation_x", "translation_y", "rotation")
+    return problem.system, [problem.symmetries[name] for name in names]
 
 
 def test_the_figure_eight_from_its_eight_digit_guess():

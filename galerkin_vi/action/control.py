@@ -255,24 +255,8 @@ class _Problem:
 
     # ------------------------------------------------------------ Hessian
     def _hessian_pieces(self, controls, cost) -> None:
-        system = self.system
-        n = self.n
-        p = system.pieces
-        mu_q = sp.symbols(f"_mu_q0:{n}")
-        mu_v = sp.symbols(f"_mu_v0:{n}")
-        weight = sp.Symbol("_weight")
-        w = [*system.q, *system.v, *controls]
-        force = list(p.force)  # L_q + f
-        phi = (
-            weight * cost
-            + sum(mq * e for mq, e in zip(mu_q, force, strict=True))
-            + sum(mv * e for mv, e in zip(mu_v, p.Lv, strict=True))
-        )
-        args = system.arguments
-        self._phi_hessian = FlatEvaluator(list(sp.hessian(phi, w)), (*args, *mu_q, *mu_v, weight))
-        self._dfdu = FlatEvaluator([sp.diff(e, u) for e in force for u in controls], args)
-        self._cost = FlatEvaluator([cost], args)
-        self._cost_grad = FlatEvaluator([sp.diff(cost, y) for y in w], args)
+        pieces = _control_pieces(self.system, tuple(controls), cost)
+        self._phi_hessian, self._dfdu, self._cost, self._cost_grad = pieces
 
     def lagrangian_hessian(self, x: NDArray, cost_weight: float, lam: NDArray):
         """Sparse Hessian of cost_weight J + lam . c in x."""
@@ -315,6 +299,39 @@ class _Problem:
         return scipy.sparse.csr_matrix(
             (local[keep], (R[keep], C[keep])), shape=(self.size, self.size)
         )
+
+
+def _control_pieces(system: LagrangianSystem, controls: tuple, cost: sp.Expr) -> tuple:
+    """The evaluators of a control problem: the point Hessian of phi, df/du, C and its gradient.
+
+    Derived and lambdified once per (controls, cost) and kept on the system (a
+    SymPy Hessian with CSE: a tenth of a second for the cart-pole, every solve
+    before), dropped when the system is pickled.
+    """
+    cache = system.__dict__.setdefault("_control_pieces", {})
+    key = (controls, cost)
+    if key in cache:
+        return cache[key]
+    n = system.n
+    p = system.pieces
+    mu_q = sp.symbols(f"_mu_q0:{n}")
+    mu_v = sp.symbols(f"_mu_v0:{n}")
+    weight = sp.Symbol("_weight")
+    w = [*system.q, *system.v, *controls]
+    force = list(p.force)  # L_q + f
+    phi = (
+        weight * cost
+        + sum(mq * e for mq, e in zip(mu_q, force, strict=True))
+        + sum(mv * e for mv, e in zip(mu_v, p.Lv, strict=True))
+    )
+    args = system.arguments
+    cache[key] = (
+        FlatEvaluator(list(sp.hessian(phi, w)), (*args, *mu_q, *mu_v, weight)),
+        FlatEvaluator([sp.diff(e, u) for e in force for u in controls], args),
+        FlatEvaluator([cost], args),
+        FlatEvaluator([sp.diff(cost, y) for y in w], args),
+    )
+    return cache[key]
 
 
 def solve_optimal_control(
