@@ -330,7 +330,13 @@ def initial_states(integrator, q, name, x, t0, prms) -> tuple[NDArray, NDArray, 
 
 
 #: the loops members_loop switches between, in its argument order
-_LOOP_NAMES = ("general_loop", "stage_form_loop", "linear_loop", "constrained_loop")
+_LOOP_NAMES = (
+    "general_loop",
+    "stage_form_loop",
+    "linear_loop",
+    "constrained_loop",
+    "varying_mass_loop",
+)
 
 
 def _blocks(m: int, workers: int) -> list[slice]:

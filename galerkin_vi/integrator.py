@@ -33,6 +33,7 @@ from .separable import has_stage_form, separable_tables
 from .status import RunStatus, loop_status
 from .system import LagrangianSystem, is_regular
 from .trajectory import Trajectory
+from .varying_mass import has_velocity_stages, varying_mass_tables
 
 __all__ = ["Integrator"]
 
@@ -146,6 +147,14 @@ class Integrator:
           (:mod:`galerkin_vi.separable`; the :math:`s - 1` interior nodes for
           collocated Lobatto, the :math:`s` points for Gauss), momenta updated
           in increment form with compensated summation;
+        - ``"varying_mass"``: any other :math:`L = \tfrac12 v^TM(t, q)v + a(t, q)\cdot v
+          - U(t, q)` (a mass matrix that varies, or velocity couplings :math:`a(q)`;
+          forces may depend on :math:`v`), stored dense, with Gauss quadrature of
+          ``degree`` points (Gauss collocation): fixed-point iteration on the
+          stage velocities with the exact mass matrix at every stage
+          (:mod:`galerkin_vi.varying_mass`), no Jacobian. A step on which the
+          iteration contracts too slowly hands the run over to ``"newton"`` from the
+          last saved state on;
         - ``"newton"``: the general Newton iteration (also the NumPy backend).
         """
         if self.system.m:
@@ -165,6 +174,8 @@ class Integrator:
             return "linear"
         if has_stage_form(self.system):
             return "separable"
+        if structure.quadratic_in_v and has_velocity_stages(method) and not self._summary.banded:
+            return "varying_mass"
         return "newton"
 
     @property
@@ -247,6 +258,8 @@ class Integrator:
         names = ("point_gradient",)
         if self.kernel_path != "explicit":
             names += ("point_hessian",)
+        if self.kernel_path == "varying_mass":
+            names += ("point_mass",)
         if spec.m:
             names += (
                 "point_constraint",
@@ -712,7 +725,44 @@ class Integrator:
             out.iterations[: -(-done // run[6])] = 1
             out.iteration_total[0] = done
             return status, done, saved, 0.0, np.nan
-        return loop(*before, *run, *after, *out.arrays, *counters)
+        result = loop(*before, *run, *after, *out.arrays, *counters)
+        if path == "varying_mass" and result[0] != 0:
+            return self._newton_from_last_row(run, out, result)
+        return result
+
+    def _newton_from_last_row(self, run: tuple, out: RunOutputs, result: tuple) -> tuple:
+        """Continue a run the varying-mass loop gave up on with Newton, from its last saved row.
+
+        The fixed-point iteration stops before a step on which it contracts too
+        slowly (or fails); the general loop then runs the rest from the last
+        saved state (a join like :meth:`stream`'s: the compensation bits and the
+        extrapolated stages start afresh). Its failures are the run's.
+        """
+        from . import loops
+
+        _, _, saved, worst, _ = result
+        q0, p0, v0, t0, h, n_steps, save_every, prm = run
+        row = saved - 1
+        start = row * save_every
+        q_row, p_row = out.q[row].copy(), out.p[row].copy()
+        turns = out.turns[row].copy() if out.periodic else None
+        prm_map = dict(zip(self.system.params, prm, strict=True))
+        v_row = self.system.inverse_legendre(q_row, p_row, t0 + start * h, prm_map)
+        out.iterations[row:] = 0
+        turns_tail = out.turns[row:] if out.periodic else out.turns
+        tail = (out.t[row:], out.q[row:], out.p[row:], turns_tail)
+        before, after = self._newton_call()
+        status, done, saved_tail, worst_tail, increment = loops.general_loop(
+            *before, q_row, p_row, np.asarray(v_row, dtype=float), t0 + start * h, h,
+            n_steps - start, save_every, prm, *after, *tail, out.iterations[row:],
+            out.iteration_total,
+        )  # fmt: skip
+        if turns is not None:
+            out.turns[row : row + saved_tail] += turns
+        # the times as the run's own clock gives them (t0 + k h, not (t0 + start h) + j h)
+        steps = np.minimum(np.arange(saved_tail) * save_every, done)
+        out.t[row : row + saved_tail] = t0 + (start + steps) * h
+        return status, start + done, row + saved_tail, max(worst, worst_tail), increment
 
     def _loop_call(self) -> tuple:
         """(loop, before, after) of an implicit compiled path: the loop is called as
@@ -733,15 +783,26 @@ class Integrator:
             diagonal = np.zeros(system.n) if self._summary.diagonal_mass else None
             after = (tb.b, tb.c, *st.loop_arguments, *newton, self.uses_constant_mass)
             return loops.stage_form_loop, (*model, diagonal), after
+        if path == "varying_mass":
+            stages = varying_mass_tables(self.method)
+            return loops.varying_mass_loop, model, (*stages.loop_arguments, *newton)
         method = (tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation)
         if path == "linear":
             return loops.linear_loop, model, method
         if path == "constrained":
             return loops.constrained_loop, (*model, system.m), (*method, *newton)
+        return loops.general_loop, *self._newton_call()
+
+    def _newton_call(self) -> tuple[tuple, tuple]:
+        """(before, after) of the general Newton loop's call (as :meth:`_loop_call`)."""
+        tb = self.method.tables
+        method = (tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation)
+        newton = (self.tol, self.maxiter)
+        model = self._loop_arguments
         # a switch (loops.traits): None compiles the L_qv and f_v terms out
         spec = self._summary
         couplings = (spec.has_Lqv, spec.has_fv) if spec.has_Lqv or spec.has_fv else None
-        return loops.general_loop, (*model, couplings), (*method, *newton)
+        return (*model, couplings), (*method, *newton)
 
     def stream(
         self,

@@ -31,7 +31,8 @@ def _runs():
     that the loops take: stage form (diagonal or full mass matrix) x (dense or banded),
     general loop (dense or banded) x (with or without L_qv / f_v couplings), linear
     loop (dense or banded), constrained loop, explicit loop (diagonal or full mass
-    matrix) x (angles or none) x (autonomous or time-dependent). Each implicit variant
+    matrix) x (angles or none) x (autonomous or time-dependent), the varying-mass
+    loop. Each implicit variant
     is also run as a two-member ensemble (:mod:`galerkin_vi.loops.members`). The last
     run solves a boundary-value problem (:mod:`galerkin_vi.loops.action`).
     """
@@ -77,7 +78,7 @@ def _runs():
         ("stage form, diagonal M, banded", chain, g2, True, *chain0),
         ("stage form, full M, banded", chain_full_mass, g2, True, *chain0),
         ("general", pendulum, g2, False, *one),
-        ("general, couplings", gyroscopic, g2, True, *one),
+        ("general, couplings", gyroscopic, g2, False, *one),
         ("general, banded", chain, g2, False, *chain0),
         ("general, banded, couplings", damped_chain, g2, True, *chain0),
         ("linear", coupled, g2, True, *two),
@@ -91,6 +92,7 @@ def _runs():
         ("explicit, time, no angles", timed_quartic, g1, True, *one),
         ("explicit, time, full M", timed_angles, g1, True, *two),
         ("explicit, time, full M, no angles", timed_coupled, g1, True, *two),
+        ("varying mass", gyroscopic, g2, True, *one),
         (BOUNDARY_VALUE, pendulum, g2, True, *one),
     ]
 
@@ -117,6 +119,7 @@ RUN_SECONDS = (
     2.3,
     3.0,
     1.5,
+    10.0,
     31.0,
 )
 

@@ -72,9 +72,15 @@ def _systems():
         (vx**2 + vy**2) / 2 - k * y, [x, y], [vx, vy], constraints=[(x**2 + y**2 - 1) / 2],
         params={k: 1.0},
     )  # fmt: skip
+    # not quadratic in v: the general Newton loop
+    general = gvi.LagrangianSystem(
+        (1 + q**2) * v**2 / 2 + v**4 / 24 + k * sp.cos(q) * (1 + sp.sin(t) / 10), [q], [v],
+        t=t, params={k: 1.0},
+    )  # fmt: skip
     return {
         "separable": (pendulum, [[0.5], [2.9], [-1.0]], [[0.1], [1.0], [0.0]]),
-        "general": (driven, [[0.5], [2.9], [-1.0]], [[0.1], [1.0], [0.0]]),
+        "varying_mass": (driven, [[0.5], [2.9], [-1.0]], [[0.1], [1.0], [0.0]]),
+        "general": (general, [[0.5], [2.9], [-1.0]], [[0.1], [1.0], [0.0]]),
         "linear": (linear, [[0.5, 0.1], [-0.2, 0.3], [0.0, 1.0]], [[0.1, 0.0]] * 3),
         "constrained": (
             rod,
@@ -84,11 +90,14 @@ def _systems():
     }
 
 
-@pytest.mark.parametrize("path", ["separable", "general", "linear", "constrained"])
+@pytest.mark.parametrize("path", ["separable", "general", "linear", "constrained", "varying_mass"])
 @pytest.mark.parametrize("start", ["v0", "p0"])
 def test_every_compiled_loop_gives_the_one_by_one_runs(path, start):
     system, q0s, v0s = _systems()[path]
-    integrator = gvi.Integrator(system, gvi.Galerkin(2))
+    # the varying-mass loop takes Gauss collocation only
+    gauss = path == "varying_mass"
+    method = gvi.Galerkin(2, gvi.gauss_legendre(2)) if gauss else gvi.Galerkin(2)
+    integrator = gvi.Integrator(system, method)
     assert integrator.kernel_path == {"general": "newton"}.get(
         path, path
     )  # each branch of the member loop is exercised

@@ -366,6 +366,10 @@ def test_linear_force_on_quadratic_lagrangian_takes_the_linear_path():
     drag = gvi.LagrangianSystem(v**2 / 2 - x**2 / 2, [x], [v], params={k: 0.3}, forces=[-k * v**3])
     assert not drag.structure.quadratic
     assert gvi.Integrator(drag, gvi.Galerkin(2), backend="numba").kernel_path == "newton"
+    # with Gauss quadrature the fixed point on the stage velocities takes it (f_v enters
+    # the force update)
+    gauss = gvi.Galerkin(2, gvi.gauss_legendre(2))
+    assert gvi.Integrator(drag, gauss, backend="numba").kernel_path == "varying_mass"
 
 
 # ------------------------------------------------------------------- verify report

@@ -49,6 +49,7 @@ _SLOTS = {
     "point_constraint_jacobian": 4,
     "point_constraint_rate": 5,
     "point_constraint_hessian": 6,
+    "point_mass": 7,
 }
 _LOCK = threading.Lock()
 # compiled point functions stay alive while the process runs: loops hold their addresses
@@ -77,6 +78,7 @@ def _c_signatures() -> dict:
         "point_constraint_jacobian": types.void(double, *(ptr,) * 3),
         "point_constraint_rate": types.void(double, *(ptr,) * 3),
         "point_constraint_hessian": types.void(double, *(ptr,) * 4),
+        "point_mass": types.void(double, *(ptr,) * 7),
     }
 
 

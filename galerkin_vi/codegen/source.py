@@ -35,6 +35,7 @@ FUNCTIONS = {
     "point_constraint_jacobian": "t, q, prm, Gq",
     "point_constraint_rate": "t, q, prm, gt",
     "point_constraint_hessian": "t, q, lam, prm, Hg",
+    "point_mass": "t, q, v, prm, Lq, Lv, Lqv, Lvv",
 }
 
 # numba's compile time grows faster than linearly with a function's length: large
@@ -187,6 +188,7 @@ def render_module(spec: KernelSpec, key: str) -> str:
         *_point_function("point_gradient", list(spec.gradient_entries), large, spec=spec),
         *_point_function("point_hessian", list(spec.hessian_entries), large, spec=spec),
         *_point_function("lagrangian", [], large, returns=spec.lagrangian),
+        *_point_function("point_mass", list(spec.mass_entries), large, spec=spec),
         *_constraint_functions(spec),
     ]
     tail = ["", "", f"# end of galerkin_vi point functions {key}", ""]

@@ -2,6 +2,8 @@ r"""Stage 1 of code generation: a system's point-wise expressions as plain data.
 
 :func:`kernel_spec` collects the expressions of :math:`L`, :math:`L_q + f`,
 :math:`L_v`, :math:`L_{qq} + f_q`, :math:`L_{qv}`, :math:`L_{vv}`, :math:`f_v`
+(and, for the varying-mass loop, the gradient with :math:`L_{qv} + f_v` and
+:math:`L_{vv}` alone)
 and of the constraints, drops the entries that are identically zero and
 renames the user's symbols to array slots ``q[a]``, ``v[a]``, ``prm[j]``;
 :func:`signature` hashes the result with the generator's version, naming the
@@ -34,7 +36,7 @@ __all__ = [
     "use_banded",
 ]
 
-GENERATOR_VERSION = "6"
+GENERATOR_VERSION = "7"
 
 
 @dataclass(frozen=True)
@@ -52,6 +54,7 @@ class KernelSpec:
     lagrangian: sp.Expr
     gradient_entries: tuple[tuple[str, sp.Expr], ...]
     hessian_entries: tuple[tuple[str, sp.Expr], ...]
+    mass_entries: tuple[tuple[str, sp.Expr], ...] = ()
     pattern: tuple[tuple[int, int], ...] = ()
     half_bandwidth: int = 0
     banded: bool = False
@@ -190,6 +193,9 @@ def kernel_spec(system: LagrangianSystem) -> KernelSpec:
         + matrix("Lvv", p.Lvv)
         + (matrix("Fv", p.fv) if has_fv else [])
     )
+    # the varying-mass loop's sweep: the gradient, d(L_q + f)/dv and L_vv, no L_qq
+    velocity_coupling = p.Lqv + p.fv if has_fv else p.Lqv
+    mass = gradient + matrix("Lqv", velocity_coupling) + matrix("Lvv", p.Lvv)
     return KernelSpec(
         n=n,
         n_params=len(system.params),
@@ -198,6 +204,7 @@ def kernel_spec(system: LagrangianSystem) -> KernelSpec:
         lagrangian=p.L.xreplace(rename),
         gradient_entries=tuple(gradient),
         hessian_entries=tuple(hessian),
+        mass_entries=tuple(mass),
         pattern=pattern if banded else (),
         half_bandwidth=half_bandwidth,
         banded=banded,

@@ -24,6 +24,7 @@ from .explicit import explicit_loop
 from .general import general_loop
 from .linear import linear_loop
 from .stage_form import stage_form_loop
+from .varying_mass import varying_mass_loop
 
 __all__ = [
     "constrained_loop",
@@ -32,4 +33,5 @@ __all__ = [
     "linear_loop",
     "loop_cache_dir",
     "stage_form_loop",
+    "varying_mass_loop",
 ]

@@ -9,7 +9,7 @@ is bitwise the one-by-one run's. Blocks run in threads at once: the drivers
 release the GIL.
 
 Which loop is called is a switch (:mod:`.traits`): exactly one of ``general``,
-``stage_form``, ``linear`` and ``constrained`` is not ``None``, and numba
+``stage_form``, ``linear``, ``constrained`` and ``varying_mass`` is not ``None``, and numba
 compiles only that branch.
 """
 
@@ -23,6 +23,7 @@ from .general import general_loop
 from .linear import linear_loop
 from .point import point_hessian
 from .stage_form import stage_form_loop
+from .varying_mass import varying_mass_loop
 
 __all__ = ["legendre_members", "linear_counted", "members_loop"]
 
@@ -49,6 +50,7 @@ def members_loop(
     stage_form,
     linear,
     constrained,
+    varying_mass,
     before,
     q0s,
     p0s,
@@ -84,6 +86,8 @@ def members_loop(
         loop = linear_counted
     if constrained is not None:
         loop = constrained_loop
+    if varying_mass is not None:
+        loop = varying_mass_loop
     for i in range(q0s.shape[0]):
         status, done, saved, worst, increment = loop(
             *before, q0s[i], p0s[i], v0s[i], t0, h, n_steps, save_every, prms[i], *after,

@@ -22,6 +22,7 @@ slot                   function
 ``CONSTRAINT_JAC``     ``void(double t, q, prm, Gq)``
 ``CONSTRAINT_RATE``    ``void(double t, q, prm, gt)``
 ``CONSTRAINT_HESS``    ``void(double t, q, lam, prm, Hg)``
+``MASS``               ``void(double t, q, v, prm, Lq, Lv, Lqv, Lvv)``
 =====================  ===================================================================
 
 Entries that are identically zero are never written: the loops zero those
@@ -47,6 +48,7 @@ __all__ = [
     "GRADIENT",
     "HESSIAN",
     "LAGRANGIAN",
+    "MASS",
     "N_SLOTS",
     "point_constraint",
     "point_constraint_hessian",
@@ -55,6 +57,7 @@ __all__ = [
     "point_gradient",
     "point_gradient_row",
     "point_hessian",
+    "point_mass_row",
 ]
 
 GRADIENT = 0
@@ -64,7 +67,8 @@ CONSTRAINT = 3
 CONSTRAINT_JAC = 4
 CONSTRAINT_RATE = 5
 CONSTRAINT_HESS = 6
-N_SLOTS = 7
+MASS = 7
+N_SLOTS = 8
 
 
 def _check_arrays(arrays) -> None:
@@ -137,29 +141,32 @@ def _is_table(array) -> bool:
     )
 
 
-@intrinsic
-def _call_gradient_row(typingctx, address, t, q, v, prm, G, Gv, row):
-    """The gradient call with :math:`L_q + f` written into row ``row`` of the 2-D ``G``,
-    and :math:`L_v` into row ``row`` of ``Gv`` (2-D) or into ``Gv`` (a vector)."""
+def _row_call_typer(address, t, q, v, prm, G, Gv, row, extra):
+    """Signature and code generator of a call that writes L_q + f into row ``row`` of ``G``.
+
+    ``Gv`` is a table (its row ``row`` receives L_v) or a vector; ``extra``
+    holds further output vectors, passed after them (the mass call's L_vv).
+    """
     if not _is_table(G):
         raise TypingError(f"the force table is a C-contiguous 2-D float64 array, got {G}")
     if not isinstance(row, types.Integer):
         raise TypingError(f"a row index is an integer, got {row}")
     if not isinstance(address, types.Integer):
         raise TypingError(f"a point function's address is an integer, got {address}")
-    _check_arrays((q, v, prm))
+    _check_arrays((q, v, prm, *extra))
     if not _is_table(Gv):
         _check_arrays((Gv,))
-    signature = types.void(address, t, q, v, prm, G, Gv, row)
+    signature = types.void(address, t, q, v, prm, G, Gv, *extra, row)
 
     def codegen(context, builder, sig, args):
-        address_value, t_value, q_value, v_value, prm_value, table, table_v, index = args
+        address_value, t_value, q_value, v_value, prm_value, table, table_v = args[:7]
+        extra_values = args[7:-1]
         t_value = context.cast(builder, t_value, sig.args[1], types.float64)
         pointers = [
             context.make_array(array_type)(context, builder, value).data
             for array_type, value in ((q, q_value), (v, v_value), (prm, prm_value))
         ]
-        index = context.cast(builder, index, row, types.intp)
+        index = context.cast(builder, args[-1], row, types.intp)
         zero = context.get_constant(types.intp, 0)
         for array_type, value in ((G, table), (Gv, table_v)):
             struct = context.make_array(array_type)(context, builder, value)
@@ -169,10 +176,26 @@ def _call_gradient_row(typingctx, address, t, q, v, prm, G, Gv, row):
                 )
             else:
                 pointers.append(struct.data)
+        for array_type, value in zip(extra, extra_values, strict=True):
+            pointers.append(context.make_array(array_type)(context, builder, value).data)
         _call_pointers(builder, address_value, t_value, pointers, returns_double=False)
         return context.get_dummy_value()
 
     return signature, codegen
+
+
+@intrinsic
+def _call_gradient_row(typingctx, address, t, q, v, prm, G, Gv, row):
+    """The gradient call with :math:`L_q + f` written into row ``row`` of the 2-D ``G``,
+    and :math:`L_v` into row ``row`` of ``Gv`` (2-D) or into ``Gv`` (a vector)."""
+    return _row_call_typer(address, t, q, v, prm, G, Gv, row, ())
+
+
+@intrinsic
+def _call_mass_row(typingctx, address, t, q, v, prm, G, Gv, Lqv, Lvv, row):
+    """The mass call: as :func:`_call_gradient_row`, then :math:`L_{qv} + f_v` into
+    ``Lqv`` and :math:`L_{vv}` into ``Lvv``."""
+    return _row_call_typer(address, t, q, v, prm, G, Gv, row, (Lqv, Lvv))
 
 
 # numba's @intrinsic reads the parameter names: one explicit definition per arity
@@ -223,6 +246,15 @@ def point_hessian(fn, t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv):
     """The gradient and the flat second derivatives (:math:`L_{qq} + f_q`, :math:`L_{qv}`,
     :math:`L_{vv}`, and :math:`f_v` when the forces depend on v)."""
     _call9(fn[HESSIAN], t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
+
+
+@kernel
+def point_mass_row(fn, t, q, v, prm, G, Lv, Lqv, Lvv, row):
+    r""":math:`L_q + f` into ``G[row, :]``, :math:`L_v` into ``Lv``, and flat dense
+    :math:`L_{qv} + f_v` (``Lqv[a n + b]`` :math:`= \partial (L_q + f)_a/\partial v_b`) and
+    :math:`L_{vv}` into ``Lqv``, ``Lvv``: what a sweep of the varying-mass loop needs, no
+    :math:`L_{qq}`."""
+    _call_mass_row(fn[MASS], t, q, v, prm, G, Lv, Lqv, Lvv, row)
 
 
 @kernel

@@ -1,0 +1,159 @@
+"""The velocity-stage loop for a mass matrix that varies with q (path "varying_mass")."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import galerkin_vi as gvi
+from galerkin_vi import problems
+from galerkin_vi.varying_mass import has_velocity_stages, varying_mass_tables
+
+numba = pytest.importorskip("numba")
+
+GAUSS = [gvi.Galerkin(s, gvi.gauss_legendre(s)) for s in (1, 2, 3, 4)]
+LOBATTO = [gvi.Galerkin(s) for s in (1, 2, 3, 4)]
+
+
+def _id(method) -> str:
+    return f"{method.quadrature.family}-{method.degree}"
+
+
+# ------------------------------------------------------------------------ tables
+@pytest.mark.parametrize("method", GAUSS, ids=_id)
+def test_tables_are_a_symplectic_collocation_pair(method):
+    t = varying_mass_tables(method)
+    r = t.b.size
+    # collocation: A 1 = c, b sums to one, and A integrates polynomials of degree < r
+    np.testing.assert_allclose(t.A.sum(axis=1), t.c, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(t.b.sum(), 1.0, rtol=0, atol=1e-15)
+    for k in range(r):
+        np.testing.assert_allclose(t.A @ t.c**k, t.c ** (k + 1) / (k + 1), rtol=0, atol=1e-15)
+    # the symplectic condition b_i abar_ij + b_j a_ji = b_i b_j
+    B = np.outer(t.b, t.b)
+    np.testing.assert_allclose(t.b[:, None] * t.Abar + (t.b[:, None] * t.A).T, B, atol=1e-15)
+    # the extrapolation reproduces polynomials of degree < r at the next step's nodes
+    for k in range(r):
+        np.testing.assert_allclose(t.X @ t.c**k, (1 + t.c) ** k, rtol=1e-13, atol=0)
+    np.testing.assert_allclose(t.Abar, t.A, rtol=0, atol=2e-16)  # Gauss: its own partner
+
+
+def test_only_gauss_collocation_has_velocity_stages():
+    assert has_velocity_stages(gvi.Galerkin(3, gvi.gauss_legendre(3)))
+    assert not has_velocity_stages(gvi.Galerkin(3))  # Lobatto: not IIIA-IIIB for M(q)
+    over = gvi.Galerkin(2, gvi.gauss_legendre(4))
+    assert not has_velocity_stages(over)
+    with pytest.raises(ValueError, match="no velocity-stage form"):
+        varying_mass_tables(over)
+
+
+# ------------------------------------------------------------------ the loop chosen
+def _polar():
+    """A particle in a central field in polar coordinates: M = diag(1, r^2) varies with r."""
+    r, th, vr, vth, k = sp.symbols("r theta v_r v_theta k")
+    L = (vr**2 + r**2 * vth**2) / 2 + k / r
+    return gvi.LagrangianSystem(L, [r, th], [vr, vth], params={k: 1.0})
+
+
+def test_the_loop_is_chosen_for_a_mass_matrix_that_varies():
+    system = problems.double_pendulum().system
+    assert gvi.Integrator(system, GAUSS[2]).kernel_path == "varying_mass"
+    # Lobatto, overintegrated Galerkin, specialize=False and NumPy stay with Newton
+    assert gvi.Integrator(system, LOBATTO[2]).kernel_path == "newton"
+    assert gvi.Integrator(system, gvi.Galerkin(2, gvi.gauss_legendre(4))).kernel_path == "newton"
+    assert gvi.Integrator(system, GAUSS[2], specialize=False).kernel_path == "newton"
+    assert gvi.Integrator(system, GAUSS[2], backend="numpy").kernel_path == "newton"
+    # a constant mass keeps the stage form
+    assert gvi.Integrator(problems.kepler().system, GAUSS[2]).kernel_path == "separable"
+
+
+# --------------------------------------------------------------- the same map
+@pytest.mark.parametrize("method", GAUSS, ids=_id)
+def test_same_map_as_newton_on_the_double_pendulum(method):
+    problem = problems.double_pendulum()
+    run = dict(h=0.02, n_steps=300, params=problem.params)
+    fast = gvi.Integrator(problem.system, method).integrate(problem.q0, problem.v0, **run)
+    newton = gvi.Integrator(problem.system, method, specialize=False).integrate(
+        problem.q0, problem.v0, **run
+    )
+    assert fast.success and fast.n_steps == 300
+    np.testing.assert_allclose(fast.q, newton.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fast.p, newton.p, rtol=0, atol=1e-12)
+    # a fixed point: more sweeps than Newton iterations, far below the cap
+    assert newton.mean_newton_iterations < fast.mean_newton_iterations < 12
+
+
+def test_noether_momentum_and_energy_in_polar_coordinates():
+    system = _polar()
+    method = GAUSS[2]
+    traj = gvi.Integrator(system, method).integrate([1.0, 0.0], [0.1, 1.1], h=0.05, n_steps=4000)
+    assert traj.success
+    # theta is cyclic: p_theta = r^2 v_theta is conserved to round-off
+    p_theta = traj.p[:, 1]
+    assert np.abs(p_theta - p_theta[0]).max() <= 1e-14 * abs(p_theta[0])
+    # energy bounded (no drift) at order 6
+    energy = traj.energy()
+    assert np.abs(energy - energy[0]).max() < 1e-9
+
+
+def test_a_step_the_fixed_point_cannot_take_hands_the_run_to_newton(monkeypatch):
+    # damping that grows with t: late in the run the sweeps contract too slowly
+    q, v, t = sp.symbols("q v t")
+    system = gvi.LagrangianSystem(
+        (2 + sp.sin(q)) * v**2 / 2 + sp.cos(q), [q], [v], t=t, forces=[-10 * t * v]
+    )
+    method = GAUSS[1]
+    run = dict(h=0.05, n_steps=60, save_every=3)
+    fast_integrator = gvi.Integrator(system, method)
+    assert fast_integrator.kernel_path == "varying_mass"
+    handovers = []
+    original = gvi.Integrator._newton_from_last_row
+
+    def spy(self, run, out, result):
+        handovers.append(result[1])  # the step the fixed point stopped before
+        return original(self, run, out, result)
+
+    monkeypatch.setattr(gvi.Integrator, "_newton_from_last_row", spy)
+    fast = fast_integrator.integrate([3.0], [8.0], **run)
+    assert len(handovers) == 1 and 30 < handovers[0] < 60  # halfway, not at the start
+    newton = gvi.Integrator(system, method, specialize=False).integrate([3.0], [8.0], **run)
+    assert fast.success and fast.n_steps == 60
+    np.testing.assert_array_equal(fast.t, newton.t)
+    # the angle wrapped before the hand-over: whole turns carried across the join
+    assert np.abs(fast.q).max() > np.pi
+    np.testing.assert_allclose(fast.q, newton.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fast.p, newton.p, rtol=0, atol=1e-12)
+
+
+def test_ensemble_members_equal_single_runs():
+    system = problems.double_pendulum().system
+    integrator = gvi.Integrator(system, GAUSS[1])
+    q0s = [[0.5, 0.1], [1.0, -0.3], [2.0, 0.0]]
+    v0s = [[0.0, 0.2], [0.1, 0.0], [-0.5, 0.5]]
+    params = problems.double_pendulum().params
+    many = integrator.integrate_many(q0s, v0s, h=0.02, n_steps=50, params=params, workers=1)
+    for i in range(3):
+        one = integrator.integrate(q0s[i], v0s[i], h=0.02, n_steps=50, params=params)
+        np.testing.assert_array_equal(many.q[i], one.q)
+        np.testing.assert_array_equal(many.p[i], one.p)
+
+
+def test_generated_mass_function_matches_the_hessian():
+    # the point function the loop calls writes L_q + f, L_v, L_qv + f_v and L_vv as the
+    # Hessian function does (here with a velocity-dependent force)
+    q, v = sp.symbols("q v")
+    system = gvi.LagrangianSystem((1 + q**2) * v**2 / 2 - q**2 / 2, [q], [v], forces=[-q * v])
+    integrator = gvi.Integrator(system, GAUSS[1])
+    namespace: dict = {}
+    exec(integrator.source, namespace)  # noqa: S102 - our own generated module
+    x, w, prm = np.array([0.7]), np.array([-1.3]), np.zeros(0)
+    Lq, Lv, Lqv, Lvv = (np.zeros(k) for k in (1, 1, 1, 1))
+    namespace["point_mass"](0.0, x, w, prm, Lq, Lv, Lqv, Lvv)
+    Hq, Hv, Hqq, Hqv, Hvv, Fv = (np.zeros(1) for _ in range(6))
+    namespace["point_hessian"](0.0, x, w, prm, Hq, Hv, Hqq, Hqv, Hvv, Fv)
+    np.testing.assert_allclose(Lq, Hq, rtol=1e-15)
+    np.testing.assert_allclose(Lv, Hv, rtol=1e-15)
+    np.testing.assert_allclose(Lvv, Hvv, rtol=1e-15)
+    np.testing.assert_allclose(Lqv, Hqv + Fv, rtol=1e-15)
+    np.testing.assert_allclose(Lqv, [2 * 0.7 * -1.3 - 0.7], rtol=1e-15)
