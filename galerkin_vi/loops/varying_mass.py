@@ -144,15 +144,6 @@ def varying_mass_loop(
                         accf += X[i, j] * F_prev[j, a]
                     V[i, a] = accv
                     F[i, a] = accf
-        for i in range(r):
-            for a in range(n):
-                accq = 0.0
-                accp = 0.0
-                for j in range(r):
-                    accq += A[i, j] * V[j, a]
-                    accp += Abar[i, j] * F[j, a]
-                Q[i, a] = qk[a] + h * accq
-                P[i, a] = pk[a] + h * accp
         size_q = 0.0
         size_p = 0.0
         for a in range(n):
@@ -166,6 +157,49 @@ def varying_mass_loop(
         previous = np.inf
         residual = 0.0
         while True:
+            # the stage positions and momenta of the current V and F (the first iterate
+            # when its = 0); after a sweep, whether and how far they moved, against the
+            # step's scale (a multiplication: dividing by each entry's own size was a
+            # tenth of the sweep)
+            change_q = 0.0
+            change_p = 0.0
+            moved = False
+            for i in range(r):
+                for a in range(n):
+                    accq = 0.0
+                    accp = 0.0
+                    for j in range(r):
+                        accq += A[i, j] * V[j, a]
+                        accp += Abar[i, j] * F[j, a]
+                    new_q = qk[a] + h * accq
+                    new_p = pk[a] + h * accp
+                    if new_q != Q[i, a] or new_p != P[i, a]:
+                        moved = True
+                        dq_abs = abs(new_q - Q[i, a])
+                        dp_abs = abs(new_p - P[i, a])
+                        if dq_abs > change_q:
+                            change_q = dq_abs
+                        if not dp_abs <= change_p:  # also catches NaN
+                            change_p = dp_abs
+                    Q[i, a] = new_q
+                    P[i, a] = new_p
+            if its > 0:
+                change = max(change_q * inv_scale_q, change_p * inv_scale_p)
+                if not moved:
+                    status = STATUS_OK
+                    break
+                if not change < 1e300 or not residual < 1e300:
+                    status = STATUS_NONFINITE
+                    break
+                if its >= 2 and change >= previous and change < ROUNDOFF_CHANGE:
+                    status = STATUS_OK
+                    break
+                if its >= maxiter or too_slow(
+                    change, previous, its, FIXED_POINT_CONTRACTION, maxiter, tol
+                ):
+                    break
+                previous = change
+            # a sweep: every stage's velocity from its momentum equation, and its force
             its += 1
             residual = 0.0
             singular = False
@@ -219,46 +253,6 @@ def varying_mass_loop(
             if singular:
                 status = STATUS_SINGULAR
                 break
-            # the stage positions and momenta of the new velocities and forces; the
-            # change is measured against the step's scale (a multiplication, where
-            # dividing by each entry's own size was a tenth of the sweep)
-            change_q = 0.0
-            change_p = 0.0
-            moved = False
-            for i in range(r):
-                for a in range(n):
-                    accq = 0.0
-                    accp = 0.0
-                    for j in range(r):
-                        accq += A[i, j] * V[j, a]
-                        accp += Abar[i, j] * F[j, a]
-                    new_q = qk[a] + h * accq
-                    new_p = pk[a] + h * accp
-                    if new_q != Q[i, a] or new_p != P[i, a]:
-                        moved = True
-                        dq_abs = abs(new_q - Q[i, a])
-                        dp_abs = abs(new_p - P[i, a])
-                        if dq_abs > change_q:
-                            change_q = dq_abs
-                        if not dp_abs <= change_p:  # also catches NaN
-                            change_p = dp_abs
-                    Q[i, a] = new_q
-                    P[i, a] = new_p
-            change = max(change_q * inv_scale_q, change_p * inv_scale_p)
-            if not moved:
-                status = STATUS_OK
-                break
-            if not change < 1e300 or not residual < 1e300:
-                status = STATUS_NONFINITE
-                break
-            if its >= 2 and change >= previous and change < ROUNDOFF_CHANGE:
-                status = STATUS_OK
-                break
-            if its >= maxiter or too_slow(
-                change, previous, its, FIXED_POINT_CONTRACTION, maxiter, tol
-            ):
-                break
-            previous = change
         slot = k // save_every
         if its > iterations_out[slot]:
             iterations_out[slot] = its
