@@ -412,7 +412,7 @@ def _on_executor(executor, integrator, q, name, x, params, run, workers) -> Ense
     spec = (
         type(integrator),
         integrator.system, integrator.method, integrator.backend, integrator.tol,
-        integrator.maxiter, integrator.specialize,
+        integrator.maxiter, integrator.specialize, integrator.fixed_point,
     )  # fmt: skip
     m = q.shape[0]
     blocks = _blocks(m, workers)
@@ -450,12 +450,16 @@ _INTEGRATORS: dict = {}
 
 def _worker_integrator(spec):
     """The integrator of ``spec`` in this process, built once (loaded from the cache)."""
-    integrator_class, system, method, backend, tol, maxiter, specialize = spec
-    key = (system._analysis_key, pickle.dumps(method), backend, tol, maxiter, specialize)
+    integrator_class, system, method, backend, tol, maxiter, specialize, fixed_point = spec
+    key = (
+        system._analysis_key, pickle.dumps(method), backend, tol, maxiter, specialize,
+        fixed_point,
+    )  # fmt: skip
     if key not in _INTEGRATORS:
         _INTEGRATORS[key] = integrator_class(
-            system, method, backend=backend, tol=tol, maxiter=maxiter, specialize=specialize
-        )
+            system, method, backend=backend, tol=tol, maxiter=maxiter, specialize=specialize,
+            fixed_point=fixed_point,
+        )  # fmt: skip
     return _INTEGRATORS[key]
 
 

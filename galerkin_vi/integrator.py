@@ -76,6 +76,13 @@ class Integrator:
     specialize : bool
         Let the structure of the problem pick a cheaper time loop (see
         :attr:`kernel_path`); ``False`` forces the general Newton loop.
+    fixed_point : bool
+        With a mass matrix that varies, iterate the stage velocities by fixed
+        point (the ``"varying_mass"`` loop; default) rather than by Newton. The
+        fixed point wins at moderate steps (double pendulum, s = 3-4); at steps
+        near its convergence limit (the long fictitious steps of
+        :class:`AdaptiveIntegrator`, which therefore passes ``False``) it hands
+        over to Newton, and Newton alone is faster.
 
     Notes
     -----
@@ -100,6 +107,7 @@ class Integrator:
         tol: float = 1e-14,
         maxiter: int = 30,
         specialize: bool = True,
+        fixed_point: bool = True,
     ) -> None:
         if not isinstance(system, LagrangianSystem):
             raise TypeError(f"system must be a LagrangianSystem, got {type(system).__name__}")
@@ -126,6 +134,7 @@ class Integrator:
         self.tol = float(tol)
         self.maxiter = int(maxiter)
         self.specialize = bool(specialize)
+        self.fixed_point = bool(fixed_point)
 
     @property
     def kernel_path(self) -> str:
@@ -174,7 +183,12 @@ class Integrator:
             return "linear"
         if has_stage_form(self.system):
             return "separable"
-        if structure.quadratic_in_v and has_velocity_stages(method) and not self._summary.banded:
+        if (
+            self.fixed_point
+            and structure.quadratic_in_v
+            and has_velocity_stages(method)
+            and not self._summary.banded
+        ):
             return "varying_mass"
         return "newton"
 

@@ -39,6 +39,7 @@ def _runs():
     import sympy as sp
 
     from .method import Galerkin
+    from .quadrature import gauss_legendre
     from .system import LagrangianSystem
 
     t = sp.Symbol("t")
@@ -92,7 +93,7 @@ def _runs():
         ("explicit, time, no angles", timed_quartic, g1, True, *one),
         ("explicit, time, full M", timed_angles, g1, True, *two),
         ("explicit, time, full M, no angles", timed_coupled, g1, True, *two),
-        ("varying mass", gyroscopic, g2, True, *one),
+        ("varying mass", gyroscopic, Galerkin(2, gauss_legendre(2)), True, *one),
         (BOUNDARY_VALUE, pendulum, g2, True, *one),
     ]
 

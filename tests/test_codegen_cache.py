@@ -268,3 +268,25 @@ def test_undefined_function_is_a_value_error_naming_it():
     f = sp.Function("mystery")
     with pytest.raises(ValueError, match=r"mystery\(x\)"):
         gvi.LagrangianSystem(vx**2 / 2 - f(x), [x], [vx])
+
+
+def test_quarter_powers_of_one_base_share_one_root():
+    # g = r^(3/2) of adaptive steps: (x^2 + y^2)^(k/4) for several k, one root computed by
+    # two square roots, the powers as products; the values those of pow
+    import math
+
+    from galerkin_vi.codegen.source import shared_quarter_roots
+
+    x, y, vx = sp.symbols("x y vx", real=True)
+    b = x**2 + y**2
+    exprs = [b ** sp.Rational(3, 4) * vx, vx / b ** sp.Rational(7, 4), b ** sp.Rational(-1, 4)]
+    rewritten, roots = shared_quarter_roots(exprs)
+    assert len(roots) == 1 and roots[0][1] == b
+    rho = roots[0][0]
+    assert all(not e.has(sp.Rational(1, 4)) for e in rewritten)
+    point = {x: 0.3, y: -1.7, vx: 2.5}
+    root = math.sqrt(math.sqrt(0.3**2 + 1.7**2))
+    for original, new in zip(exprs, rewritten, strict=True):
+        want = float(original.subs(point))
+        got = float(new.subs(point).subs(rho, root))
+        assert abs(got - want) <= 8 * abs(want) * 2.0**-52

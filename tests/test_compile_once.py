@@ -76,7 +76,7 @@ def test_a_new_system_compiles_only_its_point_functions():
 
 def test_the_warm_up_compiles_every_variant_and_the_problem_library_adds_none():
     # the switches of loops.traits: stage form and general loop 4 variants each,
-    # linear 2, constrained 1, explicit 8; every model of the problem library must
+    # linear 2, constrained 1, explicit 8, varying mass 1; every model of the problem library must
     # find its variant among them
     from galerkin_vi.warmup import warm_up
 
@@ -88,6 +88,7 @@ def test_the_warm_up_compiles_every_variant_and_the_problem_library_adds_none():
         loops.linear_loop: 2,
         loops.constrained_loop: 1,
         loops.explicit_loop: 8,
+        loops.varying_mass_loop: 1,
     }
     assert {loop: len(loop.signatures) for loop in expected} == expected
     factories = [

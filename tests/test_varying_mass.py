@@ -97,6 +97,56 @@ def test_noether_momentum_and_energy_in_polar_coordinates():
     assert np.abs(energy - energy[0]).max() < 1e-9
 
 
+def test_spherical_coordinates_take_the_diagonal_mass_path_and_conserve_p_phi():
+    # n = 3, M = diag(1, r^2, r^2 sin^2 theta): the divisions, not the LU
+    r, th, ph, vr, vth, vph = sp.symbols("r theta phi v_r v_theta v_phi")
+    L = (vr**2 + r**2 * vth**2 + r**2 * sp.sin(th) ** 2 * vph**2) / 2 + 1 / r
+    system = gvi.LagrangianSystem(L, [r, th, ph], [vr, vth, vph])
+    integrator = gvi.Integrator(system, GAUSS[1])
+    assert integrator.kernel_path == "varying_mass"
+    run = dict(h=0.05, n_steps=2000)
+    traj = integrator.integrate([1.0, 1.2, 0.0], [0.1, 0.3, 0.9], **run)
+    newton = gvi.Integrator(system, GAUSS[1], specialize=False).integrate(
+        [1.0, 1.2, 0.0], [0.1, 0.3, 0.9], **run
+    )
+    assert traj.success
+    p_phi = traj.p[:, 2]
+    assert np.abs(p_phi - p_phi[0]).max() <= 1e-14 * abs(p_phi[0])
+    np.testing.assert_allclose(traj.q, newton.q, rtol=0, atol=1e-9)
+
+
+def _chain_pendulum(links: int) -> gvi.LagrangianSystem:
+    """Unit masses and lengths: M_ij = (links - max(i, j)) cos(q_i - q_j), a full M."""
+    q = sp.symbols(f"q0:{links}")
+    v = sp.symbols(f"v0:{links}")
+    kinetic = (
+        sum(
+            (links - max(i, j)) * sp.cos(q[i] - q[j]) * v[i] * v[j]
+            for i in range(links)
+            for j in range(links)
+        )
+        / 2
+    )
+    potential = -sum((links - i) * 9.81 * sp.cos(q[i]) for i in range(links))
+    return gvi.LagrangianSystem(kinetic - potential, list(q), list(v))
+
+
+@pytest.mark.parametrize("method", GAUSS[1:3], ids=_id)
+def test_triple_pendulum_takes_the_lu_path_and_the_same_map_as_newton(method):
+    system = _chain_pendulum(3)
+    integrator = gvi.Integrator(system, method)
+    assert integrator.kernel_path == "varying_mass"
+    start = ([0.5, -0.3, 0.8], [0.0, 0.4, -0.2])
+    run = dict(h=0.01, n_steps=300)
+    fast = integrator.integrate(*start, **run)
+    newton = gvi.Integrator(system, method, specialize=False).integrate(*start, **run)
+    assert fast.success
+    np.testing.assert_allclose(fast.q, newton.q, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(fast.p, newton.p, rtol=0, atol=1e-11)
+    energy = fast.energy()
+    assert np.abs(energy - energy[0]).max() < 1e-6 * abs(energy[0])  # s = 2: 4.7e-8
+
+
 def test_a_step_the_fixed_point_cannot_take_hands_the_run_to_newton(monkeypatch):
     # damping that grows with t: late in the run the sweeps contract too slowly
     q, v, t = sp.symbols("q v t")
@@ -157,3 +207,18 @@ def test_generated_mass_function_matches_the_hessian():
     np.testing.assert_allclose(Lvv, Hvv, rtol=1e-15)
     np.testing.assert_allclose(Lqv, Hqv + Fv, rtol=1e-15)
     np.testing.assert_allclose(Lqv, [2 * 0.7 * -1.3 - 0.7], rtol=1e-15)
+
+
+def test_fixed_point_false_keeps_newton_and_the_adaptive_integrator_does():
+    system = problems.double_pendulum().system
+    assert gvi.Integrator(system, GAUSS[2], fixed_point=False).kernel_path == "newton"
+    x, y, vx, vy = sp.symbols("x y vx vy")
+    r = sp.sqrt(x**2 + y**2)
+    kepler = gvi.LagrangianSystem((vx**2 + vy**2) / 2 + 1 / r, [x, y], [vx, vy])
+    g = gvi.encounter_scaling([r], 1.5)
+    adaptive = gvi.AdaptiveIntegrator(kepler, GAUSS[2], g=g)
+    # the time-transformed Lagrangian has a mass matrix that varies, r^(-3/2)
+    assert adaptive.transform.extended.structure.quadratic_in_v
+    assert adaptive.integrator.kernel_path == "newton"
+    chosen = gvi.AdaptiveIntegrator(kepler, GAUSS[2], g=g, fixed_point=True)
+    assert chosen.integrator.kernel_path == "varying_mass"

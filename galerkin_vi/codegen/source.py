@@ -58,6 +58,30 @@ def _assignment(target: str, expr: sp.Expr, printer: KernelPrinter) -> list[str]
     return lines
 
 
+def shared_quarter_roots(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[tuple]]:
+    r"""Rewrite every :math:`b^{k/4}` as :math:`\rho_b^{\,k}`, one root :math:`\rho_b = b^{1/4}`.
+
+    A step-size function :math:`g = r^{3/2} = (x^2 + y^2)^{3/4}` puts powers
+    :math:`b^{-1/4}, b^{3/4}, b^{7/4}` of one base into the transformed
+    Lagrangian's derivatives: one ``pow`` call each (20-40 ns). With the root
+    computed once as two square roots, the others are products. Returns the
+    rewritten expressions and the ``(symbol, base)`` pairs of the roots, in the
+    order they must be computed.
+    """
+    roots: dict[sp.Expr, sp.Symbol] = {}
+
+    def root(base: sp.Expr) -> sp.Symbol:
+        if base not in roots:
+            roots[base] = sp.Symbol(f"_r{len(roots)}", positive=True)
+        return roots[base]
+
+    def quarter(z: sp.Basic) -> bool:
+        return bool(z.is_Pow and z.exp.is_Rational and z.exp.q == 4)
+
+    rewritten = [e.replace(quarter, lambda z: root(z.base) ** z.exp.p) for e in exprs]
+    return rewritten, [(symbol, base) for base, symbol in roots.items()]
+
+
 def _function_body(
     entries: list[tuple[str, sp.Expr]], returns: sp.Expr | None = None, large: bool = False
 ) -> list[str]:
@@ -67,13 +91,16 @@ def _function_body(
     small = not large
     printer = KernelPrinter(ordered=small)
     exprs = [e for _, e in entries] + ([returns] if returns is not None else [])
+    exprs, roots = shared_quarter_roots(exprs)
     temporaries, reduced = sp.cse(
         exprs,
         symbols=sp.numbered_symbols("_x"),
         optimizations="basic" if small else None,
         order="canonical" if small else "none",
     )
-    lines = []
+    lines = [
+        f"    {symbol} = math.sqrt(math.sqrt({printer.doprint(base)}))" for symbol, base in roots
+    ]
     for sym, rhs in temporaries:
         lines += _assignment(str(sym), rhs, printer)
     for (slot, _), expr in zip(entries, reduced[: len(entries)], strict=True):

@@ -36,7 +36,7 @@ __all__ = [
     "use_banded",
 ]
 
-GENERATOR_VERSION = "7"
+GENERATOR_VERSION = "8"
 
 
 @dataclass(frozen=True)

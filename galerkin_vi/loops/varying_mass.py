@@ -215,8 +215,8 @@ def varying_mass_loop(
                 # rhs <- M^-1 rhs: up to two coordinates by the adjugate (one division),
                 # written here (a helper taking these arrays cost reference counts per
                 # call: double pendulum 0.96-0.98 of the kernel inline, 1.11-1.42 as a
-                # helper, 1.4 with the LU at every size); above by an LU with partial
-                # pivoting of a copy (the point function writes only M's nonzeros).
+                # helper, 1.4 with the LU at every size); above from a copy (the point
+                # function writes only M's nonzeros).
                 # Only a preconditioner: its rounding changes the contraction, not the
                 # fixed point
                 if n == 1:
@@ -234,13 +234,27 @@ def varying_mass_loop(
                     rhs[1] = (M[0] * rhs[1] - M[2] * rhs[0]) * inv_det
                     rhs[0] = x0
                 else:
+                    # a diagonal M (the time-transformed Kepler problem's, point masses
+                    # in a moving frame) by divisions, else a pivoted LU of a copy
+                    diagonal = True
                     for a in range(n):
                         for cc in range(n):
                             LU[a, cc] = M[a * n + cc]
-                    if not lu_factor_inplace(LU, piv):
-                        singular = True
-                        break
-                    lu_solve_inplace(LU, piv, rhs)
+                            if cc != a and LU[a, cc] != 0.0:
+                                diagonal = False
+                    if diagonal:
+                        for a in range(n):
+                            if LU[a, a] == 0.0:
+                                singular = True
+                            else:
+                                rhs[a] = rhs[a] / LU[a, a]
+                        if singular:
+                            break
+                    else:
+                        if not lu_factor_inplace(LU, piv):
+                            singular = True
+                            break
+                        lu_solve_inplace(LU, piv, rhs)
                 for a in range(n):
                     V[i, a] += rhs[a]
                 # the force at the new velocity, to first order: lagging one sweep behind
