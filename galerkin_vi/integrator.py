@@ -33,7 +33,7 @@ from .separable import has_stage_form, separable_tables
 from .status import RunStatus, loop_status
 from .system import LagrangianSystem, is_regular
 from .trajectory import Trajectory
-from .varying_mass import has_velocity_stages, varying_mass_tables
+from .varying_mass import MIN_FIXED_POINT_DEGREE, has_velocity_stages, varying_mass_tables
 
 __all__ = ["Integrator"]
 
@@ -159,7 +159,7 @@ class Integrator:
         - ``"varying_mass"``: any other :math:`L = \tfrac12 v^TM(t, q)v + a(t, q)\cdot v
           - U(t, q)` (a mass matrix that varies, or velocity couplings :math:`a(q)`;
           forces may depend on :math:`v`), stored dense, with Gauss quadrature of
-          ``degree`` points (Gauss collocation): fixed-point iteration on the
+          ``degree >= 3`` points (Gauss collocation): fixed-point iteration on the
           stage velocities with the exact mass matrix at every stage
           (:mod:`galerkin_vi.varying_mass`), no Jacobian. A step on which the
           iteration contracts too slowly hands the run over to ``"newton"`` from the
@@ -187,6 +187,7 @@ class Integrator:
             self.fixed_point
             and structure.quadratic_in_v
             and has_velocity_stages(method)
+            and method.degree >= MIN_FIXED_POINT_DEGREE
             and not self._summary.banded
         ):
             return "varying_mass"
@@ -760,8 +761,14 @@ class Integrator:
         start = row * save_every
         q_row, p_row = out.q[row].copy(), out.p[row].copy()
         turns = out.turns[row].copy() if out.periodic else None
-        prm_map = dict(zip(self.system.params, prm, strict=True))
-        v_row = self.system.inverse_legendre(q_row, p_row, t0 + start * h, prm_map)
+        # the velocities only start Newton's first guess: the compiled transform (the
+        # NumPy one with a parameter mapping cost 0.5 ms of SymPy printing per call)
+        v_row = None
+        if self._point_legendre is not None:
+            v_row = self._point_legendre.velocities_of_quadratic(t0 + start * h, q_row, p_row, prm)
+        if v_row is None:
+            prm_map = dict(zip(self.system.params, prm, strict=True))
+            v_row = self.system.inverse_legendre(q_row, p_row, t0 + start * h, prm_map)
         out.iterations[row:] = 0
         turns_tail = out.turns[row:] if out.periodic else out.turns
         tail = (out.t[row:], out.q[row:], out.p[row:], turns_tail)

@@ -59,7 +59,12 @@ from numpy.typing import NDArray
 from .method import Galerkin
 from .separable import _lagrange_mp
 
-__all__ = ["VaryingMassTables", "has_velocity_stages", "varying_mass_tables"]
+__all__ = [
+    "MIN_FIXED_POINT_DEGREE",
+    "VaryingMassTables",
+    "has_velocity_stages",
+    "varying_mass_tables",
+]
 
 _DIGITS = 40
 
@@ -98,6 +103,13 @@ def has_velocity_stages(method: Galerkin) -> bool:
     """
     family, r, s = method.quadrature.family, method.quadrature.npoints, method.degree
     return family == "gauss_legendre" and r == s
+
+
+#: the varying-mass loop is chosen from this degree on: below, Newton's Jacobian is
+#: small (s n = 4 unknowns on the double pendulum) and simplified Newton was
+#: faster at every step size measured (whole runs, Gauss(2): 0.68-0.76 of the fixed
+#: point's time at h = 0.4 ... 0.02)
+MIN_FIXED_POINT_DEGREE = 3
 
 
 def varying_mass_tables(method: Galerkin) -> VaryingMassTables:

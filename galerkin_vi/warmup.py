@@ -93,7 +93,7 @@ def _runs():
         ("explicit, time, no angles", timed_quartic, g1, True, *one),
         ("explicit, time, full M", timed_angles, g1, True, *two),
         ("explicit, time, full M, no angles", timed_coupled, g1, True, *two),
-        ("varying mass", gyroscopic, Galerkin(2, gauss_legendre(2)), True, *one),
+        ("varying mass", gyroscopic, Galerkin(3, gauss_legendre(3)), True, *one),
         (BOUNDARY_VALUE, pendulum, g2, True, *one),
     ]
 

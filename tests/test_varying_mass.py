@@ -59,7 +59,9 @@ def _polar():
 def test_the_loop_is_chosen_for_a_mass_matrix_that_varies():
     system = problems.double_pendulum().system
     assert gvi.Integrator(system, GAUSS[2]).kernel_path == "varying_mass"
-    # Lobatto, overintegrated Galerkin, specialize=False and NumPy stay with Newton
+    # s <= 2 (a small Jacobian), Lobatto, overintegrated Galerkin, specialize=False and
+    # NumPy stay with Newton
+    assert gvi.Integrator(system, GAUSS[1]).kernel_path == "newton"
     assert gvi.Integrator(system, LOBATTO[2]).kernel_path == "newton"
     assert gvi.Integrator(system, gvi.Galerkin(2, gvi.gauss_legendre(4))).kernel_path == "newton"
     assert gvi.Integrator(system, GAUSS[2], specialize=False).kernel_path == "newton"
@@ -69,11 +71,13 @@ def test_the_loop_is_chosen_for_a_mass_matrix_that_varies():
 
 
 # --------------------------------------------------------------- the same map
-@pytest.mark.parametrize("method", GAUSS, ids=_id)
+@pytest.mark.parametrize("method", GAUSS[2:], ids=_id)
 def test_same_map_as_newton_on_the_double_pendulum(method):
     problem = problems.double_pendulum()
     run = dict(h=0.02, n_steps=300, params=problem.params)
-    fast = gvi.Integrator(problem.system, method).integrate(problem.q0, problem.v0, **run)
+    fast_integrator = gvi.Integrator(problem.system, method)
+    assert fast_integrator.kernel_path == "varying_mass"
+    fast = fast_integrator.integrate(problem.q0, problem.v0, **run)
     newton = gvi.Integrator(problem.system, method, specialize=False).integrate(
         problem.q0, problem.v0, **run
     )
@@ -102,11 +106,11 @@ def test_spherical_coordinates_take_the_diagonal_mass_path_and_conserve_p_phi():
     r, th, ph, vr, vth, vph = sp.symbols("r theta phi v_r v_theta v_phi")
     L = (vr**2 + r**2 * vth**2 + r**2 * sp.sin(th) ** 2 * vph**2) / 2 + 1 / r
     system = gvi.LagrangianSystem(L, [r, th, ph], [vr, vth, vph])
-    integrator = gvi.Integrator(system, GAUSS[1])
+    integrator = gvi.Integrator(system, GAUSS[2])
     assert integrator.kernel_path == "varying_mass"
     run = dict(h=0.05, n_steps=2000)
     traj = integrator.integrate([1.0, 1.2, 0.0], [0.1, 0.3, 0.9], **run)
-    newton = gvi.Integrator(system, GAUSS[1], specialize=False).integrate(
+    newton = gvi.Integrator(system, GAUSS[2], specialize=False).integrate(
         [1.0, 1.2, 0.0], [0.1, 0.3, 0.9], **run
     )
     assert traj.success
@@ -131,7 +135,7 @@ def _chain_pendulum(links: int) -> gvi.LagrangianSystem:
     return gvi.LagrangianSystem(kinetic - potential, list(q), list(v))
 
 
-@pytest.mark.parametrize("method", GAUSS[1:3], ids=_id)
+@pytest.mark.parametrize("method", GAUSS[2:], ids=_id)
 def test_triple_pendulum_takes_the_lu_path_and_the_same_map_as_newton(method):
     system = _chain_pendulum(3)
     integrator = gvi.Integrator(system, method)
@@ -144,16 +148,16 @@ def test_triple_pendulum_takes_the_lu_path_and_the_same_map_as_newton(method):
     np.testing.assert_allclose(fast.q, newton.q, rtol=0, atol=1e-11)
     np.testing.assert_allclose(fast.p, newton.p, rtol=0, atol=1e-11)
     energy = fast.energy()
-    assert np.abs(energy - energy[0]).max() < 1e-6 * abs(energy[0])  # s = 2: 4.7e-8
+    assert np.abs(energy - energy[0]).max() < 1e-8 * abs(energy[0])
 
 
 def test_a_step_the_fixed_point_cannot_take_hands_the_run_to_newton(monkeypatch):
     # damping that grows with t: late in the run the sweeps contract too slowly
     q, v, t = sp.symbols("q v t")
     system = gvi.LagrangianSystem(
-        (2 + sp.sin(q)) * v**2 / 2 + sp.cos(q), [q], [v], t=t, forces=[-10 * t * v]
+        (2 + sp.sin(q)) * v**2 / 2 + sp.cos(q), [q], [v], t=t, forces=[-5 * t * v]
     )
-    method = GAUSS[1]
+    method = GAUSS[2]
     run = dict(h=0.05, n_steps=60, save_every=3)
     fast_integrator = gvi.Integrator(system, method)
     assert fast_integrator.kernel_path == "varying_mass"
@@ -165,9 +169,9 @@ def test_a_step_the_fixed_point_cannot_take_hands_the_run_to_newton(monkeypatch)
         return original(self, run, out, result)
 
     monkeypatch.setattr(gvi.Integrator, "_newton_from_last_row", spy)
-    fast = fast_integrator.integrate([3.0], [8.0], **run)
-    assert len(handovers) == 1 and 30 < handovers[0] < 60  # halfway, not at the start
-    newton = gvi.Integrator(system, method, specialize=False).integrate([3.0], [8.0], **run)
+    fast = fast_integrator.integrate([3.0], [3.0], **run)
+    assert len(handovers) == 1 and 15 < handovers[0] < 60  # halfway, not at the start
+    newton = gvi.Integrator(system, method, specialize=False).integrate([3.0], [3.0], **run)
     assert fast.success and fast.n_steps == 60
     np.testing.assert_array_equal(fast.t, newton.t)
     # the angle wrapped before the hand-over: whole turns carried across the join
@@ -178,7 +182,8 @@ def test_a_step_the_fixed_point_cannot_take_hands_the_run_to_newton(monkeypatch)
 
 def test_ensemble_members_equal_single_runs():
     system = problems.double_pendulum().system
-    integrator = gvi.Integrator(system, GAUSS[1])
+    integrator = gvi.Integrator(system, GAUSS[2])
+    assert integrator.kernel_path == "varying_mass"
     q0s = [[0.5, 0.1], [1.0, -0.3], [2.0, 0.0]]
     v0s = [[0.0, 0.2], [0.1, 0.0], [-0.5, 0.5]]
     params = problems.double_pendulum().params
