@@ -394,7 +394,12 @@ class LagrangianSystem:
                     raise ValueError(
                         f"params: {key} is not a declared parameter {list(self.params)}"
                     )
-                x = _as_real(value, f"params[{key}]")
+                # the label is printed only for an error: printing a SymPy symbol
+                # costs ~20 us, five of them a tenth of a short run
+                try:
+                    x = float(value)
+                except (TypeError, ValueError):
+                    x = _as_real(value, f"params[{key}]")
                 if not np.isfinite(x):
                     raise ValueError(f"params[{key}] must be finite, got {value!r}")
                 values[index[key]] = x
@@ -402,8 +407,7 @@ class LagrangianSystem:
 
     @cached_property
     def _parameter_index(self) -> dict:
-        """Position of each parameter, by symbol and by name (names printed once: SymPy's
-        printing of the symbols cost 0.2 ms per run of a system with five parameters)."""
+        """Position of each parameter, by symbol and by name (the names printed once)."""
         index: dict = {s: i for i, s in enumerate(self.params)}
         index.update({str(s): i for i, s in enumerate(self.params)})
         return index
