@@ -138,7 +138,7 @@ class Integrator:
 
     @property
     def kernel_path(self) -> str:
-        r"""Which time loop runs: constrained, explicit, linear, separable or newton.
+        r"""Which time loop runs: constrained, explicit, linear, separable, varying_mass or newton.
 
         ``"constrained"`` for every system with constraints (multipliers in the
         stage equations, momentum projected at each step's end; both backends).
@@ -761,8 +761,8 @@ class Integrator:
         start = row * save_every
         q_row, p_row = out.q[row].copy(), out.p[row].copy()
         turns = out.turns[row].copy() if out.periodic else None
-        # the velocities only start Newton's first guess: the compiled transform (the
-        # NumPy one with a parameter mapping cost 0.5 ms of SymPy printing per call)
+        # the velocities only start Newton's first guess: the compiled transform, the
+        # NumPy one where there is none
         v_row = None
         if self._point_legendre is not None:
             v_row = self._point_legendre.velocities_of_quadratic(t0 + start * h, q_row, p_row, prm)

@@ -101,8 +101,9 @@ def varying_mass_loop(
     ``pattern`` must be ``None`` (the mass matrix is stored dense). ``v0`` starts the
     stage velocities of the first step. A step whose iteration fails (or contracts
     by less than ``FIXED_POINT_CONTRACTION``, or would need more than ``maxiter``
-    sweeps by :func:`.too_slow`'s prediction) is not taken and *no* extra row is
-    saved: the caller continues from the last saved row with Newton. Returns
+    sweeps by :func:`.too_slow`'s prediction), and the step after the sweeps per step
+    have come to average more than ``SWEEP_ALLOWANCE + r``, is not taken and *no*
+    extra row is saved: the caller continues from the last saved row with Newton. Returns
     (status, steps completed, rows saved, max momentum residual, last change).
     """
     n = q0.shape[0]
