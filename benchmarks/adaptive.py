@@ -38,9 +38,9 @@ import numpy as np
 import sympy as sp
 
 import galerkin_vi as gvi
-from galerkin_vi.benchmark import time_to_error
 from galerkin_vi.problems import gravitation
 from galerkin_vi.problems.base import ode_reference
+from galerkin_vi.tools.benchmark import time_to_error
 
 _HERE = str(Path(__file__).resolve().parent)
 if _HERE not in sys.path:

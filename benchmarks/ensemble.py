@@ -16,7 +16,7 @@ nothing compiled on the workers. Measured here, in one run:
   done on first access only);
 - with ``--dask``: the same members on a ``LocalCluster`` of 2 worker
   processes, compared bitwise with the serial run, and each worker's numba
-  cache statistics (``galerkin_vi.ensemble.compile_statistics``).
+  cache statistics (``galerkin_vi.run.ensemble.compile_statistics``).
 
 Usage::
 
@@ -36,8 +36,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 import galerkin_vi as gvi
-from galerkin_vi.ensemble import compile_statistics
 from galerkin_vi.problems import mechanics
+from galerkin_vi.run.ensemble import compile_statistics
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -56,7 +56,7 @@ a node on arrival only. The benchmark drops solve_ivp's event at t = 0.
 
 From the curves: the time to reach each target error (1e-6, 1e-8, 1e-10),
 interpolated linearly in log time against log error between the two points
-around it (``galerkin_vi.benchmark.time_to_error``), the best galerkin_vi curve
+around it (``galerkin_vi.tools.benchmark.time_to_error``), the best galerkin_vi curve
 at each target, and the ratio solve_ivp time / galerkin_vi time (> 1:
 galerkin_vi is faster). Only ratios measured in the same run mean anything on a
 shared machine.
@@ -95,7 +95,7 @@ from scipy.integrate import solve_ivp
 
 import galerkin_vi as gvi
 from galerkin_vi import problems
-from galerkin_vi.benchmark import time_to_error
+from galerkin_vi.tools.benchmark import time_to_error
 
 #: mean time between upward crossings of x = 0 on this orbit (measured over t <= 66 000)
 RETURN_TIME = 6.64

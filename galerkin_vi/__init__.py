@@ -13,7 +13,6 @@ from .action import (
     solve_periodic,
 )
 from .adaptive import AdaptiveIntegrator, AdaptiveTrajectory, PoincareTransform, encounter_scaling
-from .choice import MethodChoice, choose_method
 from .errors import (
     ConditioningWarning,
     ConvergenceError,
@@ -22,15 +21,16 @@ from .errors import (
     OrderReductionWarning,
     RunFailureWarning,
 )
-from .events import Event
 from .integrator import Integrator
-from .method import Galerkin
-from .quadrature import QuadratureRule, gauss_legendre, gauss_lobatto
-from .status import RunStatus
-from .system import LagrangianSystem
-from .trajectory import Trajectory
-from .unilateral import Contact
-from .verification import OrderResult, measure_order
+from .method.galerkin import Galerkin
+from .method.quadrature import QuadratureRule, gauss_legendre, gauss_lobatto
+from .model.contacts import Contact
+from .model.system import LagrangianSystem
+from .run.events import Event
+from .run.status import RunStatus
+from .run.trajectory import Trajectory
+from .tools.choice import MethodChoice, choose_method
+from .tools.verification import OrderResult, measure_order
 
 __all__ = [
     "ActionStatus",

@@ -57,12 +57,12 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import ConvergenceError
-from .failures import check_failure_mode, failed_run
 from .integrator import Integrator, state_vector
-from .method import Galerkin
-from .status import RunStatus
-from .system import LagrangianSystem
-from .trajectory import Trajectory
+from .method.galerkin import Galerkin
+from .model.system import LagrangianSystem
+from .run.failures import check_failure_mode, failed_run
+from .run.status import RunStatus
+from .run.trajectory import Trajectory
 
 __all__ = ["AdaptiveIntegrator", "AdaptiveTrajectory", "PoincareTransform", "encounter_scaling"]
 

@@ -13,27 +13,27 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from . import codegen
-from .backends import numpy as numpy_backend
-from .backends import numpy_constrained, resolve_backend
-from .chunks import run_in_chunks
-from .constraints import consistent_initial_state, project_momentum
-from .ensemble import integrate_many
 from .errors import (
     ConvergenceError,
     DegenerateLagrangianError,
     InstabilityWarning,
     RunFailureWarning,
 )
-from .events import apply_events, as_events, event_function, locate_events, terminal_stop
-from .failures import check_failure_mode, failed_run
-from .growth import EXPLOSIVE_GROWTH, INSTABILITY_GROWTH, explosive_row
-from .method import Galerkin
+from .method.galerkin import Galerkin
+from .method.stage_form import has_stage_form, separable_tables
+from .method.velocity_stages import MIN_FIXED_POINT_DEGREE, has_velocity_stages, varying_mass_tables
+from .model.constraints import consistent_initial_state, project_momentum
+from .model.system import LagrangianSystem, is_regular
 from .newton import CONVERGED, newton_solve
-from .separable import has_stage_form, separable_tables
-from .status import RunStatus, loop_status
-from .system import LagrangianSystem, is_regular
-from .trajectory import Trajectory
-from .varying_mass import MIN_FIXED_POINT_DEGREE, has_velocity_stages, varying_mass_tables
+from .reference import numpy as numpy_backend
+from .reference import numpy_constrained, resolve_backend
+from .run.chunks import run_in_chunks
+from .run.ensemble import integrate_many
+from .run.events import apply_events, as_events, event_function, locate_events, terminal_stop
+from .run.failures import check_failure_mode, failed_run
+from .run.growth import EXPLOSIVE_GROWTH, INSTABILITY_GROWTH, explosive_row
+from .run.status import RunStatus, loop_status
+from .run.trajectory import Trajectory
 
 __all__ = ["Integrator"]
 
@@ -153,7 +153,7 @@ class Integrator:
         - ``"separable"``: any other :math:`L = \tfrac12 v^TMv + a(t)\cdot v + U(t, q)`
           with constant :math:`M` and forces :math:`f(t, q)`: Newton on the
           stage increments at the implicit quadrature points only
-          (:mod:`galerkin_vi.separable`; the :math:`s - 1` interior nodes for
+          (:mod:`galerkin_vi.method.stage_form`; the :math:`s - 1` interior nodes for
           collocated Lobatto, the :math:`s` points for Gauss), momenta updated
           in increment form with compensated summation;
         - ``"varying_mass"``: any other :math:`L = \tfrac12 v^TM(t, q)v + a(t, q)\cdot v
@@ -161,7 +161,7 @@ class Integrator:
           forces may depend on :math:`v`), stored dense, with Gauss quadrature of
           ``degree >= 3`` points (Gauss collocation): fixed-point iteration on the
           stage velocities with the exact mass matrix at every stage
-          (:mod:`galerkin_vi.varying_mass`), no Jacobian. A step on which the
+          (:mod:`galerkin_vi.method.velocity_stages`), no Jacobian. A step on which the
           iteration contracts too slowly hands the run over to ``"newton"`` from the
           last saved state on;
         - ``"newton"``: the general Newton iteration (also the NumPy backend).
@@ -351,7 +351,7 @@ class Integrator:
         hessian = self._points.compiled.get("point_hessian")
         if hessian is None:
             return None
-        from .point_legendre import PointLegendre
+        from .run.legendre import PointLegendre
 
         pattern = self._summary.pattern if self._summary.banded else None
         return PointLegendre(hessian.address, self.system.n, pattern)
@@ -435,7 +435,7 @@ class Integrator:
             Constrained systems only: move ``q0`` to a nearby point of the
             constraint manifold (Gauss–Newton) and the momentum onto the
             hidden constraint. Without it, initial data that violate either by
-            more than :data:`galerkin_vi.constraints.INITIAL_TOLERANCE` are
+            more than :data:`galerkin_vi.model.constraints.INITIAL_TOLERANCE` are
             rejected; within it, ``q0`` is kept and only the momentum is
             projected (exactly, a change of the size of the violation).
         on_failure : {"warn", "raise"}
@@ -450,13 +450,13 @@ class Integrator:
         dense_output : bool
             Attach ``Trajectory.sol``, positions, velocities and momenta at any
             time of the run, from Hermite interpolation of the nodal data at
-            the method's order (:mod:`galerkin_vi.dense`). Needs every step
+            the method's order (:mod:`galerkin_vi.run.dense`). Needs every step
             saved (``save_every=1``).
         t_span : (float, float), optional
             Integrate from ``t_span[0]`` (instead of ``t0``) to ``t_span[1]``
             with equal steps of at most ``|h|``; instead of ``n_steps``.
         events : Event, expression, callable or a list of them, optional
-            Zeros of :math:`g(t, q, v)` to locate (:mod:`galerkin_vi.events`,
+            Zeros of :math:`g(t, q, v)` to locate (:mod:`galerkin_vi.run.events`,
             solve_ivp's conventions: ``terminal``, ``direction``). Their times
             and states are in ``Trajectory.t_events``, ``q_events``,
             ``v_events``, ``p_events``, one array per event; a terminal event
@@ -471,7 +471,7 @@ class Integrator:
             A progress bar (tqdm): always, never, or (None, default) for runs
             predicted to take over 2 s when stderr is a terminal. Runs over
             5000 steps go in chunks whose size depends on the system only
-            (:mod:`galerkin_vi.chunks`); Ctrl-C between them ends the run
+            (:mod:`galerkin_vi.run.chunks`); Ctrl-C between them ends the run
             with the states computed so far (their dense output and events
             included), ``status`` :attr:`RunStatus.INTERRUPTED` and a warning,
             whatever ``on_failure`` says.
@@ -966,9 +966,9 @@ class Integrator:
         """:meth:`integrate` for many initial states and/or parameter sets at once.
 
         Runs of one compiled call (at most
-        :data:`~galerkin_vi.chunks.FIRST_CHUNK` steps) without events, dense
+        :data:`~galerkin_vi.run.chunks.FIRST_CHUNK` steps) without events, dense
         output or ``t_eval`` go through the compiled member loop
-        (:mod:`galerkin_vi.ensemble`): a few microseconds per member besides
+        (:mod:`galerkin_vi.run.ensemble`): a few microseconds per member besides
         its steps. Others are one :meth:`integrate` call per member.
 
         Parameters

@@ -24,11 +24,11 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import ConvergenceError
-from .method import Galerkin
+from .method.galerkin import Galerkin
+from .model.system import LagrangianSystem
 from .problems.base import Problem
-from .system import LagrangianSystem
-from .trajectory import Trajectory
-from .verification import OrderResult, measure_order
+from .run.trajectory import Trajectory
+from .tools.verification import OrderResult, measure_order
 
 __all__ = ["assert_conserved", "assert_order"]
 

@@ -1,4 +1,4 @@
-"""The on-disk cache of a system's symbolic analysis (galerkin_vi.analysis_cache)."""
+"""The on-disk cache of a system's symbolic analysis (galerkin_vi.model.analysis_cache)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-r"""Tests for galerkin_vi.basis.
+r"""Tests for galerkin_vi.method.basis.
 
 The high-degree reference is the product form evaluated in mpmath at 50 digits, with
 :math:`\ell_\nu' = w_\nu \sum_k \prod_{\mu \ne \nu, k}(x - d_\mu)` (prefix and suffix products):
@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from galerkin_vi.basis import (
+from galerkin_vi.method.basis import (
     LagrangeBasis,
     equidistant_control_nodes,
     equidistant_control_nodes_mp,
@@ -24,7 +24,7 @@ from galerkin_vi.basis import (
     lobatto_control_nodes,
     lobatto_control_nodes_mp,
 )
-from galerkin_vi.quadrature import (
+from galerkin_vi.method.quadrature import (
     gauss_legendre,
     gauss_legendre_mp,
     gauss_lobatto,

@@ -1,4 +1,4 @@
-"""galerkin_vi.benchmark: work-precision curves of galerkin_vi's methods on a user's model.
+"""galerkin_vi.tools.benchmark: work-precision curves of galerkin_vi's methods on a user's model.
 
 No timing is asserted: only the shape of the results, the errors and the sweeps.
 """

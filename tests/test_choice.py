@@ -23,7 +23,7 @@ import pytest
 
 import galerkin_vi as gvi
 from galerkin_vi import problems
-from galerkin_vi.choice import Candidate
+from galerkin_vi.tools.choice import Candidate
 
 DEGREES = (1, 2, 4)
 OSCILLATOR_T = 50.0

@@ -152,7 +152,7 @@ def test_bench_needs_a_model(capsys):
 def test_warmup_compiles_or_loads_every_loop_and_says_where(capsys):
     from galerkin_vi.loops import loop_cache_dir
     from galerkin_vi.loops.readiness import MARKER
-    from galerkin_vi.warmup import _runs
+    from galerkin_vi.tools.warmup import _runs
 
     assert cli.main(["warmup"]) == 0
     out = capsys.readouterr().out

@@ -78,7 +78,7 @@ def test_the_warm_up_compiles_every_variant_and_the_problem_library_adds_none():
     # the switches of loops.traits: stage form and general loop 4 variants each,
     # linear 2, constrained 1, explicit 8, varying mass 1; every model of the problem library must
     # find its variant among them
-    from galerkin_vi.warmup import warm_up
+    from galerkin_vi.tools.warmup import warm_up
 
     for group in range(3):
         warm_up(group, 3)

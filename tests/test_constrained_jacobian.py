@@ -13,7 +13,7 @@ import pytest
 import sympy as sp
 
 import galerkin_vi as gvi
-from galerkin_vi.backends import numpy_constrained
+from galerkin_vi.reference import numpy_constrained
 
 x, y, z, vx, vy, vz, t, B = sp.symbols("x y z vx vy vz t B")
 SYSTEM = gvi.LagrangianSystem(

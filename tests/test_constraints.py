@@ -42,7 +42,7 @@ from galerkin_vi.problems.constrained import (
     rotating_hoop,
 )
 from galerkin_vi.testing import assert_conserved
-from galerkin_vi.verification import fit_order
+from galerkin_vi.tools.verification import fit_order
 
 ORDER_TOLERANCE = 0.3
 # constraint and hidden-constraint residuals of short runs (measured <= 4.5e-16)

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 import galerkin_vi as gvi
 from galerkin_vi import dense
-from galerkin_vi.dense import hermite, stencil_nodes
+from galerkin_vi.run.dense import hermite, stencil_nodes
 
 q, v = sp.symbols("q v")
 OSCILLATOR = gvi.LagrangianSystem(v**2 / 2 - q**2 / 2, [q], [v])  # q = cos t from (1, 0)

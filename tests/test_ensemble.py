@@ -10,9 +10,9 @@ import pytest
 import sympy as sp
 
 import galerkin_vi as gvi
-from galerkin_vi.chunks import FIRST_CHUNK
-from galerkin_vi.ensemble import compile_statistics, member_parameters, parameter_matrix
 from galerkin_vi.problems import mechanics
+from galerkin_vi.run.chunks import FIRST_CHUNK
+from galerkin_vi.run.ensemble import compile_statistics, member_parameters, parameter_matrix
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ import pytest
 import sympy as sp
 
 import galerkin_vi as gvi
-from galerkin_vi.events import Event, as_events
+from galerkin_vi.run.events import Event, as_events
 
 q, v, k = sp.symbols("q v k")
 # q = cos t from (1, 0): zeros of q at pi/2 + j pi, downward ones of v at 2 pi j

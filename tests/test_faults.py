@@ -41,7 +41,7 @@ from hypothesis import HealthCheck, event, given, note, settings
 from hypothesis import strategies as st
 
 import galerkin_vi as gvi
-from galerkin_vi.backends import numba as numba_backend
+from galerkin_vi.reference import numba as numba_backend
 
 BACKENDS = ["numba", "numpy"]
 LIBRARY = Path(gvi.__file__).resolve().parent

@@ -22,7 +22,7 @@ import sympy as sp
 import galerkin_vi as gvi
 from galerkin_vi import problems, report
 from galerkin_vi.testing import assert_order
-from galerkin_vi.verification import fit_order
+from galerkin_vi.tools.verification import fit_order
 
 ORDER_TOLERANCE = 0.3
 

@@ -17,7 +17,7 @@ import sympy.physics.mechanics as me
 from sympy.core.function import AppliedUndef
 
 import galerkin_vi as gvi
-from galerkin_vi.mechanics import generalised_forces, to_plain_symbols
+from galerkin_vi.model.mechanics import generalised_forces, to_plain_symbols
 
 T = me.dynamicsymbols._t
 m1, m2, l1, l2, g = sp.symbols("m1 m2 l1 l2 g")

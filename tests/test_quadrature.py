@@ -1,4 +1,4 @@
-r"""Tests for galerkin_vi.quadrature.
+r"""Tests for galerkin_vi.method.quadrature.
 
 Reference values come from an independent 50-digit mpmath computation: roots of mpmath's
 hypergeometric ``legendre`` found with ``findroot`` (secant) from NumPy/SciPy starting guesses,
@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 from numpy.polynomial.legendre import leggauss
 from scipy.special import roots_jacobi
 
-from galerkin_vi.quadrature import (
+from galerkin_vi.method.quadrature import (
     QuadratureRule,
     gauss_legendre,
     gauss_legendre_mp,

@@ -15,7 +15,7 @@ import sympy as sp
 
 import galerkin_vi as gvi
 from galerkin_vi.problems import gravitation
-from galerkin_vi.status import RunStatus, loop_status
+from galerkin_vi.run.status import RunStatus, loop_status
 from galerkin_vi.testing import assert_conserved
 
 q, v, k = sp.symbols("q v k")
@@ -178,7 +178,7 @@ def test_legitimate_growth_is_not_flagged():
 
 
 def test_explosive_row():
-    from galerkin_vi.growth import explosive_row
+    from galerkin_vi.run.growth import explosive_row
 
     steps = np.arange(4)
     calm = np.array([[0.0], [1e-8], [1e-3], [0.5]])  # from rest: measured against 1

@@ -16,7 +16,7 @@ import sympy as sp
 import galerkin_vi as gvi
 from galerkin_vi import codegen, problems
 from galerkin_vi import integrator as integrator_module
-from galerkin_vi.separable import has_stage_form, separable_tables
+from galerkin_vi.method.stage_form import has_stage_form, separable_tables
 
 from .butcher_tables import gauss_tables, lobatto_tables
 

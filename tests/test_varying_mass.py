@@ -8,7 +8,7 @@ import sympy as sp
 
 import galerkin_vi as gvi
 from galerkin_vi import problems
-from galerkin_vi.varying_mass import has_velocity_stages, varying_mass_tables
+from galerkin_vi.method.velocity_stages import has_velocity_stages, varying_mass_tables
 
 numba = pytest.importorskip("numba")
 

@@ -1,7 +1,7 @@
 """Peer benchmark: galerkin_vi against hand-written numba kernels, scipy, numbalsoda and REBOUND.
 
 This package lives in the repository's ``benchmarks/`` folder, not in the installed
-galerkin_vi (which keeps the user tool :mod:`galerkin_vi.benchmark`); it imports
+galerkin_vi (which keeps the user tool :mod:`galerkin_vi.tools.benchmark`); it imports
 galerkin_vi, never the reverse. Put ``benchmarks/`` on ``sys.path`` to import it
 (``python benchmarks/run.py`` does so by running from there).
 

@@ -59,7 +59,7 @@ from scipy.integrate import solve_ivp
 
 import galerkin_vi as gvi
 from galerkin_vi import benchmark as bm
-from galerkin_vi.benchmark import TARGETS, Curve, Sample, time_to_error
+from galerkin_vi.tools.benchmark import TARGETS, Curve, Sample, time_to_error
 
 from . import handwritten as hw
 from .cases import (
@@ -660,7 +660,7 @@ def _curves(case: Case, cfg: BenchConfig, log: Callable[[str], None]) -> list[Cu
 def _sweep(case: Case, curve: Curve, cfg: BenchConfig, log: Callable[[str], None]) -> None:
     """Fill ``curve.points`` by one sweep against the case's reference.
 
-    See :func:`galerkin_vi.benchmark.sweep`.
+    See :func:`galerkin_vi.tools.benchmark.sweep`.
     """
     bm.sweep(curve, case.q_ref, case.energy0, case.t_final, cfg.time_cap, cfg.ivp_time_cap, log)
 

@@ -13,7 +13,7 @@ t = t_k + theta h, theta = 1/18, 3/18, ..., 17/18, in every step of a run over
 order is the least-squares slope of log error against log h. On the oscillator
 the script also evaluates the step's own Galerkin polynomial at the same points
 (control points from the NumPy backend's step solver,
-``galerkin_vi.backends.numpy.solve_step``, started from each saved (q_k, p_k)),
+``galerkin_vi.reference.numpy.solve_step``, started from each saved (q_k, p_k)),
 the interpolant that is *not* offered.
 
 Prints the table and draws ``docs/_static/dense_output.png``: a coarse run of
@@ -38,9 +38,9 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 import galerkin_vi as gvi
-from galerkin_vi.backends.numpy import solve_step
-from galerkin_vi.basis import LagrangeBasis
-from galerkin_vi.dense import stencil_nodes
+from galerkin_vi.method.basis import LagrangeBasis
+from galerkin_vi.reference.numpy import solve_step
+from galerkin_vi.run.dense import stencil_nodes
 
 OUTPUT = Path(__file__).resolve().parents[1] / "_static" / "dense_output.png"
 SPAN = 6.0

@@ -28,14 +28,14 @@ import numpy as np
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
-from ..basis import LagrangeBasis
-from ..constraints import project_momentum
-from ..dense import DenseOutput, stencil_nodes
-from ..method import Galerkin, MethodTables
+from ..method.basis import LagrangeBasis
+from ..method.galerkin import Galerkin, MethodTables
+from ..model.constraints import project_momentum
+from ..model.system import LagrangianSystem
 from ..numeric import FlatEvaluator
-from ..status import RunStatus
-from ..system import LagrangianSystem
-from ..trajectory import Trajectory
+from ..run.dense import DenseOutput, stencil_nodes
+from ..run.status import RunStatus
+from ..run.trajectory import Trajectory
 from .condensation import condense, solve_node_chain
 from .elements import ElementPoints, element_actions, element_gradients, element_jacobians
 from .multipliers import augment

@@ -41,11 +41,11 @@ import numpy as np
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
-from ..method import Galerkin
+from ..method.galerkin import Galerkin
+from ..model.system import LagrangianSystem
 from ..numeric import FlatEvaluator
-from ..status import RunStatus
-from ..system import LagrangianSystem
-from ..trajectory import Trajectory
+from ..run.status import RunStatus
+from ..run.trajectory import Trajectory
 from .elements import ElementPoints, element_gradients, element_jacobians
 
 __all__ = ["OptimalControl", "solve_optimal_control"]

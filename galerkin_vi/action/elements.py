@@ -34,8 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..method import MethodTables
-from ..system import LagrangianSystem
+from ..method.galerkin import MethodTables
+from ..model.system import LagrangianSystem
 
 __all__ = ["ElementPoints", "element_actions", "element_gradients", "element_jacobians"]
 

@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..method import MethodTables
-from ..system import LagrangianSystem
+from ..method.galerkin import MethodTables
+from ..model.system import LagrangianSystem
 
 __all__ = ["augment", "constraint_values"]
 

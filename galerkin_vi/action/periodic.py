@@ -49,12 +49,12 @@ import numpy as np
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
-from ..basis import LagrangeBasis
-from ..method import Galerkin
+from ..method.basis import LagrangeBasis
+from ..method.galerkin import Galerkin
+from ..model.system import LagrangianSystem
 from ..numeric import FlatEvaluator
-from ..status import RunStatus
-from ..system import LagrangianSystem
-from ..trajectory import Trajectory
+from ..run.status import RunStatus
+from ..run.trajectory import Trajectory
 from .bvp import _MESSAGES, ActionStatus
 from .elements import ElementPoints, element_actions, element_gradients, element_jacobians
 

@@ -20,10 +20,10 @@ from typing import TYPE_CHECKING
 
 import sympy as sp
 
-from ..separable import has_stage_form
+from ..method.stage_form import has_stage_form
 
 if TYPE_CHECKING:
-    from ..system import LagrangianSystem
+    from ..model.system import LagrangianSystem
 
 __all__ = [
     "GENERATOR_VERSION",

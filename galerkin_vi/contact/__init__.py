@@ -1,7 +1,7 @@
 """Contact: integration between and through impacts.
 
 The contacts themselves are declared with the system
-(:class:`galerkin_vi.Contact`, :mod:`galerkin_vi.unilateral`). Here:
+(:class:`galerkin_vi.Contact`, :mod:`galerkin_vi.model.contacts`). Here:
 :mod:`.impact` (the impact law: restitution and the Coulomb impulse; the
 contacts' numeric functions), :mod:`.time_stepping` (persistent contact: a
 complementarity problem per step by an interior point) and :mod:`.runs`

@@ -6,7 +6,7 @@ closes during step k, the step is cut where it closes, as in the variational
 collision integrators of Fetecau, Marsden, Ortiz and West (2003): a step of
 the same discrete Lagrangian of length :math:`\alpha h` from :math:`(q_k, p_k)`
 whose end lies on :math:`\varphi = 0`, with :math:`\alpha` the unknown (a secant
-iteration started at the root of the dense output, :mod:`galerkin_vi.events`
+iteration started at the root of the dense output, :mod:`galerkin_vi.run.events`
 with ``exact=True``). There the impact law (:mod:`.impact`) maps :math:`p^-` to
 :math:`p^+`, and a second step of length :math:`(1 - \alpha) h` lands back on
 :math:`t_{k+1}` (cut again if another impact falls inside it). The grid never
@@ -34,9 +34,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import ConvergenceError, RunFailureWarning
-from ..events import Event
-from ..failures import check_failure_mode, failed_run
-from ..status import RunStatus
+from ..run.events import Event
+from ..run.failures import check_failure_mode, failed_run
+from ..run.status import RunStatus
 from .impact import ContactFunctions, Impact, impulse, stop_slip
 
 __all__ = ["MAX_IMPACTS_PER_STEP", "PENETRATION", "integrate_with_contacts"]
@@ -441,7 +441,7 @@ class _Run:
         return _Stop(RunStatus.CONTACT_PERSISTS, message, step, t)
 
     def trajectory(self, status: RunStatus, message: str):
-        from ..trajectory import Trajectory
+        from ..run.trajectory import Trajectory
 
         t, q, p = np.concatenate(self._t), np.concatenate(self._q), np.concatenate(self._p)
         return Trajectory(

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..backends import numpy as numpy_backend
+from ..reference import numpy as numpy_backend
 from .impact import ContactFunctions
 
 __all__ = ["ContactForces", "ContactStep", "ContactStepper", "StepResult"]

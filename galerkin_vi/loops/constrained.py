@@ -16,7 +16,7 @@ with Jacobian blocks :math:`K^{\nu\mu} - \delta_{\nu\mu} \sum_j
 \Lambda^\nu_j \nabla^2 g_j(q^\nu)` (for :math:`\nu \ge 1`),
 :math:`-\mathcal G(q^\nu)^T` in the multiplier columns and
 :math:`\mathcal G(q^\nu)` in the constraint rows. After convergence the
-momentum is projected onto the hidden constraint (see :mod:`galerkin_vi.constraints`).
+momentum is projected onto the hidden constraint (see :mod:`galerkin_vi.model.constraints`).
 """
 
 # ruff: noqa: N803, N806

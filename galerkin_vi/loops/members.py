@@ -107,7 +107,7 @@ def legendre_members(fn, t0, q0s, v0s, prms, Lv_out, Lvv_out):
 
     Every member's momenta :math:`p_0 = L_v(t_0, q_0, v_0)` in one call, through
     the same compiled point function a single run's Legendre transform calls
-    (:class:`galerkin_vi.point_legendre.PointLegendre`), so the values are the
+    (:class:`galerkin_vi.run.legendre.PointLegendre`), so the values are the
     same. ``Lv_out`` and ``Lvv_out`` must be zero on entry: entries that are
     identically zero are never written.
     """

@@ -1,7 +1,7 @@
 """Whether the loops are compiled on this machine, and compiling all of them at once.
 
-Every loop variant is compiled by :mod:`galerkin_vi.warmup`, run as separate
-processes (``python -m galerkin_vi.warmup --group g --of G``, one group per
+Every loop variant is compiled by :mod:`galerkin_vi.tools.warmup`, run as separate
+processes (``python -m galerkin_vi.tools.warmup --group g --of G``, one group per
 core, at most two): numba compiles one function at a time per process, and the
 variants are independent. A marker file in the loops' cache folder records that
 all of them are there. :func:`ensure_loops` is what an integrator calls before
@@ -43,7 +43,15 @@ def compile_all(jobs: int | None = None, verbose: bool = False) -> float:
     start = time.perf_counter()
     processes = [
         subprocess.Popen(
-            [sys.executable, "-m", "galerkin_vi.warmup", "--group", str(g), "--of", str(jobs)],
+            [
+                sys.executable,
+                "-m",
+                "galerkin_vi.tools.warmup",
+                "--group",
+                str(g),
+                "--of",
+                str(jobs),
+            ],
             env=env,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,

@@ -2,7 +2,7 @@ r"""The compiled time loop of the stage form, for separable Lagrangians.
 
 For a system with :math:`L = \tfrac12 v^TMv + a(t)\cdot v + U(t, q)`, constant
 :math:`M` and forces independent of :math:`v`. The tables are those of
-:mod:`galerkin_vi.separable`: with :math:`F_j = (L_q + f)(t_k + c_j h, q_k + Z_j)`,
+:mod:`galerkin_vi.method.stage_form`: with :math:`F_j = (L_q + f)(t_k + c_j h, q_k + Z_j)`,
 the unknowns are the increments :math:`Z_i` at the implicit points,
 
 .. math::

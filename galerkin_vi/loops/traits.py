@@ -18,7 +18,7 @@ generated module is data, in two kinds:
   ``periodic`` of the implicit loops, tested once per block or per step, where
   a test costs nothing measurable; they add no compiled variants.
 
-:mod:`galerkin_vi.warmup` compiles every variant.
+:mod:`galerkin_vi.tools.warmup` compiles every variant.
 """
 
 from __future__ import annotations

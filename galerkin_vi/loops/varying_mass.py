@@ -2,7 +2,7 @@ r"""The compiled time loop of the velocity-stage form, for a mass matrix that va
 
 For :math:`L = \tfrac12 v^TM(t, q)v + a(t, q)\cdot v - U(t, q)` with Gauss quadrature
 of :math:`s` points; the stage equations and tables are those of
-:mod:`galerkin_vi.varying_mass`:
+:mod:`galerkin_vi.method.velocity_stages`:
 
 .. math::
 
@@ -97,7 +97,7 @@ def varying_mass_loop(
 ):
     r"""Run ``n_steps`` steps of the velocity-stage form from (q0, p0); as :func:`.general_loop`.
 
-    ``b, c, A, Abar, X`` are :class:`~galerkin_vi.varying_mass.VaryingMassTables`;
+    ``b, c, A, Abar, X`` are :class:`~galerkin_vi.method.velocity_stages.VaryingMassTables`;
     ``pattern`` must be ``None`` (the mass matrix is stored dense). ``v0`` starts the
     stage velocities of the first step. A step whose iteration fails (or contracts
     by less than ``FIXED_POINT_CONTRACTION``, or would need more than ``maxiter``

@@ -9,7 +9,7 @@ import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 
-from ..system import LagrangianSystem
+from ..model.system import LagrangianSystem
 
 __all__ = ["Problem", "ode_interpolant", "ode_reference"]
 

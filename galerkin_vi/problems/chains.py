@@ -9,7 +9,7 @@ import numpy as np
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
-from ..system import LagrangianSystem
+from ..model.system import LagrangianSystem
 from .base import Problem
 
 __all__ = ["fermi_pasta_ulam", "spring_chain"]

@@ -31,7 +31,7 @@ import numpy as np
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
-from ..system import LagrangianSystem
+from ..model.system import LagrangianSystem
 from .base import Problem, ode_interpolant, ode_reference
 from .mechanics import ROTATION_Z, spherical_pendulum
 

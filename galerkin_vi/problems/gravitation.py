@@ -9,7 +9,7 @@ from importlib import resources
 import numpy as np
 import sympy as sp
 
-from ..system import LagrangianSystem
+from ..model.system import LagrangianSystem
 from .base import Problem
 
 __all__ = ["central_force", "kepler", "kepler_position", "n_body", "outer_solar_system"]

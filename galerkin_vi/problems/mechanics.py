@@ -7,7 +7,7 @@ from functools import cache
 import numpy as np
 import sympy as sp
 
-from ..system import LagrangianSystem
+from ..model.system import LagrangianSystem
 from .base import Problem
 
 __all__ = [

@@ -38,12 +38,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ConvergenceError
-from .integrator import Integrator
-from .method import Galerkin
-from .quadrature import QuadratureRule, gauss_legendre, gauss_lobatto
-from .system import LagrangianSystem
-from .trajectory import Trajectory
+from ..errors import ConvergenceError
+from ..integrator import Integrator
+from ..method.galerkin import Galerkin
+from ..method.quadrature import QuadratureRule, gauss_legendre, gauss_lobatto
+from ..model.system import LagrangianSystem
+from ..run.trajectory import Trajectory
 
 __all__ = [
     "TARGETS",
@@ -380,7 +380,7 @@ def _final_reference(
     params: Mapping | None,
 ) -> NDArray[np.float64]:
     if reference is None:
-        from .problems import ode_reference
+        from ..problems import ode_reference
 
         return np.asarray(ode_reference(system, q0, v0, t_final, params), dtype=float)
     if callable(reference):

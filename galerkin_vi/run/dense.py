@@ -27,7 +27,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .system import LagrangianSystem
+from ..model.system import LagrangianSystem
 
 __all__ = ["DenseOutput", "hermite", "stencil_nodes"]
 

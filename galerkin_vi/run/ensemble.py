@@ -1,7 +1,7 @@
 """Ensembles: many initial states or parameter sets, run in parallel.
 
 A member is what one :meth:`Integrator.integrate` call would compute, bitwise.
-Runs of one compiled call (at most :data:`~galerkin_vi.chunks.FIRST_CHUNK`
+Runs of one compiled call (at most :data:`~galerkin_vi.run.chunks.FIRST_CHUNK`
 steps, no events, dense output or ``t_eval``) go through
 :func:`galerkin_vi.loops.members.members_loop`: the initial Legendre
 transforms in Python, then blocks of members each in one compiled call of the
@@ -33,7 +33,7 @@ import numpy as np
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
-from .backends import numpy as numpy_backend
+from ..reference import numpy as numpy_backend
 from .chunks import single_call
 from .failures import check_failure_mode
 from .growth import EXPLOSIVE_GROWTH, INSTABILITY_GROWTH
@@ -251,7 +251,7 @@ def member_outputs(integrator, q, name, x, params, run, workers) -> tuple[Member
     fixed = (t0, h, n_steps, save_every)
 
     def block(rows: slice) -> None:
-        from .loops.members import members_loop
+        from ..loops.members import members_loop
 
         loop, before, after = integrator._loop_call()  # work space of its own per block
         switches = [loop.__name__ == kind for kind in _LOOP_NAMES]
@@ -260,7 +260,7 @@ def member_outputs(integrator, q, name, x, params, run, workers) -> tuple[Member
             q0s[rows], p0s[rows], v0s[rows], *fixed, prms[rows], after, *out.rows(rows),
         )  # fmt: skip
 
-    from .loops.readiness import ensure_loops
+    from ..loops.readiness import ensure_loops
 
     ensure_loops()
     blocks = _blocks(m, workers)
@@ -488,7 +488,7 @@ def compile_statistics() -> dict[str, int]:
     counts = {"loops_loaded": 0, "loops_compiled": 0, "points_loaded": 0, "points_compiled": 0}
     loops = sys.modules.get("galerkin_vi.loops")
     if loops is not None:
-        from .loops.members import members_loop
+        from ..loops.members import members_loop
 
         for loop in (*(getattr(loops, name) for name in _LOOP_NAMES), members_loop):
             counts["loops_loaded"] += sum(loop.stats.cache_hits.values())

@@ -9,9 +9,9 @@ import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 
+from ..model.system import LagrangianSystem
 from .dense import DenseOutput, stencil_nodes
 from .status import RunStatus
-from .system import LagrangianSystem
 
 __all__ = ["Trajectory"]
 
@@ -47,14 +47,14 @@ class Trajectory:
     status : RunStatus
         Why the run stopped, with :func:`scipy.integrate.solve_ivp`'s signs:
         0 it reached its end, 1 a terminal event stopped it, negative a failure
-        (see :class:`~galerkin_vi.status.RunStatus`).
+        (see :class:`~galerkin_vi.run.status.RunStatus`).
     message : str
         The status in words; for a failure, the step, time and cause.
     order : int or None
         The method's predicted global order (sets the dense output's stencil).
     sol : DenseOutput or None
         Positions, velocities and momenta at any time of the run
-        (``integrate(..., dense_output=True)``; see :mod:`galerkin_vi.dense`).
+        (``integrate(..., dense_output=True)``; see :mod:`galerkin_vi.run.dense`).
     t_events, q_events, v_events, p_events : list of ndarray or None
         With ``integrate(..., events=...)``: per event, the times (m,) and
         the positions, velocities and momenta (m, n) of its occurrences.
@@ -127,12 +127,12 @@ class Trajectory:
         return self.system.inverse_legendre(self._reduced_q(), self.p, self.t, self._param_dict())
 
     def dense(self, stencil: int | None = None) -> DenseOutput:
-        """Dense output of the run from its saved states (:mod:`galerkin_vi.dense`).
+        """Dense output of the run from its saved states (:mod:`galerkin_vi.run.dense`).
 
         Parameters
         ----------
         stencil : int, optional
-            Nodes per interpolant; default :func:`~galerkin_vi.dense.stencil_nodes`
+            Nodes per interpolant; default :func:`~galerkin_vi.run.dense.stencil_nodes`
             of the method's order (``order``; 2 when unknown). Every step saved
             (``save_every=1``) gives the method's order; sparser saves
             interpolate over their spacing.

@@ -1,4 +1,4 @@
-"""Compile every time loop once for this machine: ``python -m galerkin_vi.warmup``.
+"""Compile every time loop once for this machine: ``python -m galerkin_vi.tools.warmup``.
 
 The loops of :mod:`galerkin_vi.loops` are compiled by numba on their first
 use and cached on disk (:func:`galerkin_vi.loops.loop_cache_dir`); after that,
@@ -38,9 +38,9 @@ def _runs():
     """
     import sympy as sp
 
-    from .method import Galerkin
-    from .quadrature import gauss_legendre
-    from .system import LagrangianSystem
+    from ..method.galerkin import Galerkin
+    from ..method.quadrature import gauss_legendre
+    from ..model.system import LagrangianSystem
 
     t = sp.Symbol("t")
     q, v = sp.symbols("q v")
@@ -141,8 +141,8 @@ def warm_up(group: int = 0, of: int = 1, verbose: bool = False) -> dict[str, flo
 
     Returns the seconds each run took, by the variant's label.
     """
-    from .action import solve_bvp
-    from .integrator import Integrator
+    from ..action import solve_bvp
+    from ..integrator import Integrator
 
     runs = _runs()
     seconds: dict[str, float] = {}
@@ -167,8 +167,8 @@ def warm_up(group: int = 0, of: int = 1, verbose: bool = False) -> dict[str, flo
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m galerkin_vi.warmup [--group g --of G]``."""
-    parser = argparse.ArgumentParser(prog="python -m galerkin_vi.warmup")
+    """``python -m galerkin_vi.tools.warmup [--group g --of G]``."""
+    parser = argparse.ArgumentParser(prog="python -m galerkin_vi.tools.warmup")
     parser.add_argument("--group", type=int, default=0)
     parser.add_argument("--of", type=int, default=1)
     args = parser.parse_args(argv)

@@ -1,7 +1,7 @@
 r"""Velocity-stage form of the Galerkin method for a mass matrix that varies with q.
 
 For :math:`L = \tfrac12 v^TM(t, q)v + a(t, q)\cdot v - U(t, q)` the stage form of
-:mod:`galerkin_vi.separable` does not apply (it needs a constant :math:`M`), but
+:mod:`galerkin_vi.method.stage_form` does not apply (it needs a constant :math:`M`), but
 the Galerkin method with Gauss quadrature of :math:`s` points and degree :math:`s`
 is :math:`s`-stage Gauss collocation [1]_, whose stage equations a fixed-point
 iteration solves without any Jacobian. Write
@@ -56,8 +56,8 @@ import mpmath
 import numpy as np
 from numpy.typing import NDArray
 
-from .method import Galerkin
-from .separable import _lagrange_mp
+from .galerkin import Galerkin
+from .stage_form import _lagrange_mp
 
 __all__ = [
     "MIN_FIXED_POINT_DEGREE",

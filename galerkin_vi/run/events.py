@@ -5,7 +5,7 @@ with ``terminal`` (True, or a count of occurrences) and ``direction`` (> 0
 only upward zero crossings, < 0 only downward, 0 both). An event is a
 crossing of the sign of :math:`g` between two consecutive nodes; its time is
 the root of :math:`g(t, \tilde q(t), \dot{\tilde q}(t))` on the dense output
-:math:`\tilde q` (:mod:`galerkin_vi.dense`), found to round-off by the Illinois
+:math:`\tilde q` (:mod:`galerkin_vi.run.dense`), found to round-off by the Illinois
 variant of regula falsi, bracketed, for all crossings at once. The dense output
 has the method's order, so the event times do too (measured in the events
 how-to). With ``exact=True`` the time is then refined so that one step of the
@@ -24,9 +24,9 @@ import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 
+from ..model.system import LagrangianSystem
 from .dense import DenseOutput
 from .status import RunStatus
-from .system import LagrangianSystem
 
 __all__ = ["Event", "EventRecord", "as_events", "locate_events"]
 

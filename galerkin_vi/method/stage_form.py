@@ -52,7 +52,7 @@ import mpmath
 import numpy as np
 from numpy.typing import NDArray
 
-from .method import Galerkin
+from .galerkin import Galerkin
 
 __all__ = ["SeparableTables", "has_stage_form", "separable_tables"]
 

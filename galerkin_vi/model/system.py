@@ -12,8 +12,10 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 from sympy.core.function import AppliedUndef
 
+from ..errors import DegenerateLagrangianError
+from ..numeric import FlatEvaluator
 from .analysis_cache import analysis_key, load_analysis, store_analysis
-from .errors import DegenerateLagrangianError
+from .contacts import Contact, check_contacts
 from .mechanics import (
     MechanicsSymbols,
     PlainModel,
@@ -21,7 +23,6 @@ from .mechanics import (
     to_plain_symbols,
     uses_dynamicsymbols,
 )
-from .numeric import FlatEvaluator
 from .symbolic import (
     ConstraintPieces,
     PointwisePieces,
@@ -32,7 +33,6 @@ from .symbolic import (
     pointwise_pieces,
     without_point_masses,
 )
-from .unilateral import Contact, check_contacts
 
 __all__ = ["LagrangianSystem", "MomentumMap", "are_regular", "is_regular"]
 
@@ -84,7 +84,7 @@ class LagrangianSystem:
         (optionally ``t`` and parameters). The integrator enforces them
         exactly at every control point, with multipliers, and projects the
         momentum onto the hidden constraint :math:`\frac{d}{dt} g = 0` at each
-        step's end (see :mod:`galerkin_vi.constraints`).
+        step's end (see :mod:`galerkin_vi.model.constraints`).
     forces : sequence of sympy.Expr, optional
         External generalised forces :math:`f_a(t, q, v)`, one per coordinate
         (damping, actuation), entering by the discrete Lagrange–d'Alembert
@@ -96,7 +96,7 @@ class LagrangianSystem:
     mechanics_symbols : MechanicsSymbols or None
         For a model given in dynamicsymbols, the map between them and the plain
         symbols of :attr:`q`, :attr:`v` and :attr:`t`
-        (:class:`~galerkin_vi.mechanics.MechanicsSymbols`); ``None`` otherwise.
+        (:class:`~galerkin_vi.model.mechanics.MechanicsSymbols`); ``None`` otherwise.
 
     Raises
     ------
@@ -518,7 +518,7 @@ class LagrangianSystem:
             groups.append(
                 ("constraints", [*c.jacobian, *c.rate, *(e for h in c.hessians for e in h)])
             )
-        from .printer import unsupported_functions
+        from ..printer import unsupported_functions
 
         for name, exprs in groups:
             unsupported = unsupported_functions(sp.Tuple(*exprs))
@@ -802,7 +802,7 @@ def _check_printable(expr: sp.Expr, name: str) -> None:
             f"{name} contains undefined functions {', '.join(undefined)}: give them as explicit "
             "SymPy expressions"
         )
-    from .printer import unsupported_functions
+    from ..printer import unsupported_functions
 
     unsupported = unsupported_functions(expr)
     if unsupported:

@@ -2,7 +2,7 @@
 
 ``galerkin-vi verify`` runs the order study (the project's main job);
 ``galerkin-vi bench`` measures work-precision curves of galerkin_vi's methods on a
-model (:mod:`galerkin_vi.benchmark`). The comparison with hand-written kernels,
+model (:mod:`galerkin_vi.tools.benchmark`). The comparison with hand-written kernels,
 scipy and REBOUND is ``python benchmarks/run.py`` in the repository.
 ``galerkin-vi warmup`` compiles the time loops once for the machine.
 """
@@ -321,13 +321,13 @@ def build_parser() -> argparse.ArgumentParser:
 def _warmup(args: argparse.Namespace) -> int:
     import shutil
 
-    from .cache import cache_root
+    from ..cache import cache_root
 
     if args.clear:
         shutil.rmtree(cache_root(), ignore_errors=True)
         print(f"cleared {cache_root()}")
-    from .loops import loop_cache_dir
-    from .loops.readiness import compile_all
+    from ..loops import loop_cache_dir
+    from ..loops.readiness import compile_all
 
     print(f"compiling the time loops into {loop_cache_dir()}")
     seconds = compile_all(jobs=args.jobs, verbose=True)

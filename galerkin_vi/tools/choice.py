@@ -86,11 +86,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ConvergenceError
-from .integrator import Integrator
-from .method import Galerkin
-from .quadrature import gauss_legendre, gauss_lobatto
-from .system import LagrangianSystem
+from ..errors import ConvergenceError
+from ..integrator import Integrator
+from ..method.galerkin import Galerkin
+from ..method.quadrature import gauss_legendre, gauss_lobatto
+from ..model.system import LagrangianSystem
 
 __all__ = ["Candidate", "MethodChoice", "choose_method"]
 
@@ -724,7 +724,7 @@ def choose_method(
 ) -> MethodChoice:
     r"""Choose the method and step size that reach ``tol`` over ``t_final`` at the least cost.
 
-    See the module docstring (:mod:`galerkin_vi.choice`) for the error and
+    See the module docstring (:mod:`galerkin_vi.tools.choice`) for the error and
     cost model, and its limits.
 
     Parameters

@@ -3,7 +3,7 @@ r"""The order-verification report: ``galerkin-vi verify`` as a library.
 For each problem, degree :math:`s` and quadrature family the report
 
 1. measures the convergence order of the final (or maximal) position error
-   with :func:`~galerkin_vi.verification.measure_order` and compares it with
+   with :func:`~galerkin_vi.tools.verification.measure_order` and compares it with
    the prediction :math:`\min(2s, \text{quadrature order})`;
 2. runs the method once more at the finest step of the order study and records
    the largest energy error :math:`\max_k |H_k - H_0| / \max(1, |H_0|)` (only
@@ -31,12 +31,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import problems
-from .errors import OrderReductionWarning
-from .integrator import Integrator
-from .method import Galerkin
-from .quadrature import gauss_legendre, gauss_lobatto
-from .system import LagrangianSystem
+from .. import problems
+from ..errors import OrderReductionWarning
+from ..integrator import Integrator
+from ..method.galerkin import Galerkin
+from ..method.quadrature import gauss_legendre, gauss_lobatto
+from ..model.system import LagrangianSystem
 from .verification import OrderResult, measure_order
 
 __all__ = [

@@ -16,10 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ConvergenceError
-from .integrator import Integrator
-from .method import Galerkin
-from .system import LagrangianSystem
+from ..errors import ConvergenceError
+from ..integrator import Integrator
+from ..method.galerkin import Galerkin
+from ..model.system import LagrangianSystem
 
 __all__ = ["OrderResult", "fit_order", "measure_order"]
 
@@ -329,7 +329,7 @@ def _measure_order_mp(
     """:func:`measure_order` in mpmath arithmetic (see its ``dps`` parameter)."""
     import mpmath
 
-    from .backends.mpmath import MpIntegrator
+    from ..reference.mpmath import MpIntegrator
 
     if counts is None:
         raise ValueError("dps mode needs explicit step_counts")

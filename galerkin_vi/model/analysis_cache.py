@@ -1,6 +1,6 @@
 """On-disk cache of a system's symbolic analysis, keyed by the user's input.
 
-Building a :class:`~galerkin_vi.system.LagrangianSystem` differentiates ``L``,
+Building a :class:`~galerkin_vi.model.system.LagrangianSystem` differentiates ``L``,
 the forces and the constraints with SymPy and analyses the result (structure,
 angles, printability, regularity): 20-500 ms for the models of the problem
 library, most of a cached system's start-up in a new process. The result is
@@ -10,7 +10,7 @@ two-coordinate model, against 80 ms to derive).
 The key hashes the inputs by their pickles (symbol names and assumptions
 included, since the pieces hold the user's symbols), the default
 parameter values (the regularity check samples with them), the sources of the
-analysis (:mod:`galerkin_vi.symbolic`, :mod:`galerkin_vi.system`) and the
+analysis (:mod:`galerkin_vi.model.symbolic`, :mod:`galerkin_vi.model.system`) and the
 SymPy and Python versions: an edited analysis or a new SymPy starts afresh.
 An unreadable entry is ignored and written again.
 """
@@ -26,7 +26,7 @@ from typing import Any
 
 import sympy as sp
 
-from .cache import atomic_write_bytes, cache_root
+from ..cache import atomic_write_bytes, cache_root
 
 __all__ = ["analysis_key", "load_analysis", "store_analysis"]
 

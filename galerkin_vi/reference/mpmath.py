@@ -16,8 +16,8 @@ import mpmath
 import sympy as sp
 
 from ..errors import ConvergenceError
-from ..method import Galerkin
-from ..system import LagrangianSystem
+from ..method.galerkin import Galerkin
+from ..model.system import LagrangianSystem
 
 __all__ = ["MpIntegrator"]
 

@@ -11,7 +11,7 @@ compiled Hessian point function (:mod:`galerkin_vi.loops.point`) gives
 
 Banded systems (chains) keep the second derivatives as the entries of their
 sparsity pattern, in its order; they are scattered into a dense :math:`L_{vv}`
-for the regularity test (:func:`~galerkin_vi.system.is_regular`: an SVD up to
+for the regularity test (:func:`~galerkin_vi.model.system.is_regular`: an SVD up to
 64 coordinates, an LU condition estimate beyond). For a 100-mass chain the
 NumPy expressions took 2 ms a call, this path about 0.1 ms.
 """
@@ -24,7 +24,7 @@ import threading
 import numpy as np
 from numpy.typing import NDArray
 
-from .system import are_regular, is_regular
+from ..model.system import are_regular, is_regular
 
 __all__ = ["PointLegendre"]
 
@@ -115,9 +115,9 @@ class PointLegendre:
         One compiled call for all rows (:func:`galerkin_vi.loops.members.legendre_members`,
         through ``fn``, the loops' tuple of point-function addresses), the same
         values as :meth:`at` row by row; ``regular[i]``: :math:`L_{vv}` finite and
-        regular (:func:`~galerkin_vi.system.are_regular`).
+        regular (:func:`~galerkin_vi.model.system.are_regular`).
         """
-        from .loops.members import legendre_members
+        from ..loops.members import legendre_members
 
         q, v, prms = _vector(q), _vector(v), _vector(prms)
         m, n = q.shape

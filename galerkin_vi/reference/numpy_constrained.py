@@ -1,7 +1,7 @@
 r"""Reference backend of the constrained integrator (NumPy, no compiler).
 
 The same equations as :mod:`galerkin_vi.loops.constrained` (see
-:mod:`galerkin_vi.constraints`), written with whole arrays: the oracle the
+:mod:`galerkin_vi.model.constraints`), written with whole arrays: the oracle the
 compiled constrained loop is tested against.
 """
 
@@ -10,10 +10,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..constraints import project_momentum
-from ..method import MethodTables
+from ..method.galerkin import MethodTables
+from ..model.constraints import project_momentum
+from ..model.system import LagrangianSystem
 from ..newton import CONVERGED, NewtonResult, newton_solve
-from ..system import LagrangianSystem
 from .numpy import discrete_gradient, discrete_hessian, save_row, wrap_angles
 
 __all__ = ["integrate", "solve_constrained_step"]

@@ -10,12 +10,12 @@ import mpmath
 import numpy as np
 from numpy.typing import NDArray
 
+from ..errors import ConditioningWarning, OrderReductionWarning
 from .basis import (
     equidistant_control_nodes_mp,
     lagrange_tables_mp,
     lobatto_control_nodes_mp,
 )
-from .errors import ConditioningWarning, OrderReductionWarning
 from .quadrature import QuadratureRule, gauss_legendre_mp, gauss_lobatto, gauss_lobatto_mp
 
 __all__ = ["ExactTables", "Galerkin", "MethodTables"]

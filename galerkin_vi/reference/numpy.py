@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..method import MethodTables
+from ..method.galerkin import MethodTables
+from ..model.system import LagrangianSystem
 from ..newton import CONVERGED, NewtonResult, newton_solve
-from ..system import LagrangianSystem
 
 __all__ = [
     "discrete_gradient",

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import warnings
 
-from .errors import ConvergenceError, RunFailureWarning
+from ..errors import ConvergenceError, RunFailureWarning
 
 __all__ = ["FAILURE_MODES", "check_failure_mode", "failed_run"]
 
