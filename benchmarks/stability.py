@@ -61,7 +61,7 @@ positive root of :math:`N(y) \mp 2\Delta(y)` (and of :math:`\Delta`: none
 exists for these methods, the stage equations are solvable at every
 :math:`x`), classifies the intervals between them and, inside each unstable
 interval, the largest spectral radius and the number of steps it needs to
-grow by :math:`10^6` (the library's :data:`~galerkin_vi.run.growth.INSTABILITY_GROWTH`).
+grow by :math:`10^6` (the library's :data:`~galerkin_vi.run.trust.INSTABILITY_GROWTH`).
 Checks: Störmer–Verlet (degree 1, Lobatto 2) has :math:`t = 2 - x^2`, limit
 :math:`x = 2`; degree :math:`s` with Gauss :math:`s` points is :math:`s`-stage
 Gauss collocation, :math:`t = 2\operatorname{Re} R_{ss}(ix)` with the diagonal
@@ -122,7 +122,7 @@ import sympy as sp
 import galerkin_vi as gvi
 from galerkin_vi import problems
 from galerkin_vi.reference.numpy import discrete_hessian
-from galerkin_vi.run.growth import INSTABILITY_GROWTH
+from galerkin_vi.run.trust import INSTABILITY_GROWTH
 
 DPS = 60  # digits of the exact trace computation
 FAMILIES = ("lobatto", "gauss")
@@ -157,7 +157,7 @@ def label(family: str, degree: int) -> str:
 
 
 # ----------------------------------------------------------------------------- theory
-def _stage_form(tables: gvi.method.ExactTables, y: mpmath.mpf) -> mpmath.matrix:
+def _stage_form(tables: gvi.method.galerkin.ExactTables, y: mpmath.mpf) -> mpmath.matrix:
     """:math:`A(y) = \\sum_i b_i (D_i D_i^T - y \\Phi_i \\Phi_i^T)`, shape (s + 1, s + 1)."""
     s1, r = len(tables.d), len(tables.b)
     A = mpmath.matrix(s1, s1)

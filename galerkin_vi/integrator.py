@@ -3,9 +3,7 @@ r"""The integrator: a system, a method and a backend, run over many steps."""
 from __future__ import annotations
 
 import numbers
-import warnings
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -13,45 +11,29 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from . import codegen
-from .errors import (
-    ConvergenceError,
-    DegenerateLagrangianError,
-    InstabilityWarning,
-    RunFailureWarning,
-)
+from .errors import ConvergenceError
 from .method.galerkin import Galerkin
-from .method.stage_form import has_stage_form, separable_tables
-from .method.velocity_stages import MIN_FIXED_POINT_DEGREE, has_velocity_stages, varying_mass_tables
-from .model.constraints import consistent_initial_state, project_momentum
-from .model.system import LagrangianSystem, is_regular
+from .method.stage_form import has_stage_form
+from .method.velocity_stages import MIN_FIXED_POINT_DEGREE, has_velocity_stages
+from .model.system import LagrangianSystem
 from .newton import CONVERGED, newton_solve
 from .reference import numpy as numpy_backend
-from .reference import numpy_constrained, resolve_backend
-from .run.chunks import run_in_chunks
+from .reference import resolve_backend
 from .run.ensemble import integrate_many
-from .run.events import apply_events, as_events, event_function, locate_events, terminal_stop
-from .run.failures import check_failure_mode, failed_run
-from .run.growth import EXPLOSIVE_GROWTH, INSTABILITY_GROWTH, explosive_row
-from .run.status import RunStatus, loop_status
+from .run.failures import check_failure_mode
+from .run.plan import state_vector, step_size
+from .run.smooth import integrate_smooth
+from .run.spec import (
+    RunSpec,
+    banded_pattern,
+    loop_traits,
+    periodic_mask,
+    point_function_names,
+)
+from .run.stream import stream_chunks
 from .run.trajectory import Trajectory
 
 __all__ = ["Integrator"]
-
-# below this many stage unknowns the constant-mass iteration does not pay (measured)
-MIN_UNKNOWNS_CONSTANT_MASS = 1
-
-
-def state_vector(name: str, x: ArrayLike, n: int) -> NDArray[np.float64]:
-    """``x`` as a finite float array of shape (n,); ``name`` in the error otherwise."""
-    try:
-        arr = np.array(x, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be an array of real numbers, got {x!r}") from exc
-    if arr.shape != (n,):
-        raise ValueError(f"{name} must have shape ({n},), got {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise ValueError(f"{name} contains NaN or inf: {arr}")
-    return arr
 
 
 class Integrator:
@@ -197,26 +179,19 @@ class Integrator:
     def uses_constant_mass(self) -> bool:
         r"""Whether the stage-form loop starts each step with the constant-mass iteration.
 
-        True on the ``"separable"`` path (constant :math:`M`) with at least
-        ``MIN_UNKNOWNS_CONSTANT_MASS = 1`` unknown, i.e. always. The iteration
+        True on the ``"separable"`` path (constant :math:`M`). The iteration
         matrix is then :math:`I \otimes M`, the Jacobian without its
         :math:`h^2 L_{qq}` terms: fixed-point iteration, one gradient per implicit
         point and one solve with :math:`M` (a division when :math:`M` is diagonal)
         per sweep, no Hessian and no LU. It contracts by
         :math:`O(h^2\|M^{-1}L_{qq}\|)`; when an increment is not at least
         ``min(0.01 u n, 0.2)`` times the one before, full Newton takes over for
-        the rest of the step and the next 64 steps. With the first iterate from the
-        previous step's extrapolated forces and the bit-identical stopping rule
-        it takes as many sweeps per step as the hand-written fixed-point kernels
-        (``benchmarks/same_method.py``), and a sweep costs less than a Newton
-        iteration at any size: measured on the pendulum (1-2 unknowns), full
-        Newton 3.2-3.6 iterations and 450-750 ns per step against 3.9-4.7 sweeps
-        and 290-430 ns.
+        the rest of the step and the next 64 steps. A sweep costs less than a
+        Newton iteration at any size, and with the first iterate from the
+        previous step's extrapolated forces the sweeps per step equal the
+        hand-written fixed-point kernels' (docs/performance.md).
         """
-        if self.kernel_path != "separable":
-            return False
-        unknowns = separable_tables(self.method).implicit.size * self.system.n
-        return unknowns >= MIN_UNKNOWNS_CONSTANT_MASS
+        return self.kernel_path == "separable"
 
     def __repr__(self) -> str:
         return f"Integrator({self.system!r}, {self.method!r}, backend={self.backend!r})"
@@ -260,46 +235,38 @@ class Integrator:
         return codegen.render_module(self._spec, key)
 
     @cached_property
-    def _loop_arguments(self):
-        """The system's part of every loop's arguments: (fn, traits, pattern, periodic).
+    def run_spec(self) -> RunSpec:
+        """The frozen description of this integrator's runs (:mod:`galerkin_vi.run.spec`).
 
-        Built on the first run and kept: looking up the compiled functions' addresses
-        costs about 0.2 ms a call, which many short runs (adaptive landing steps,
-        ensembles, ``step``) would pay every time.
+        Built on the first run and kept: the point functions' addresses cost about
+        0.2 ms to look up, which many short runs (adaptive landing steps,
+        ensembles, ``step``, event and contact cuts) would pay every time.
         """
-        from .loops.traits import AUTONOMOUS, BAND, HAS_FV, HAS_LQV, N_TRAITS
-
-        spec = self._summary
-        names = ("point_gradient",)
-        if self.kernel_path != "explicit":
-            names += ("point_hessian",)
-        if self.kernel_path == "varying_mass":
-            names += ("point_mass",)
-        if spec.m:
-            names += (
-                "point_constraint",
-                "point_constraint_jacobian",
-                "point_constraint_rate",
-                "point_constraint_hessian",
-            )
-        # tuples of ints, not arrays: passed by value into the loops' inlined helpers,
-        # where every array argument costs an atomic reference count pair per call
+        path = self.kernel_path
+        if self.backend != "numba":
+            return RunSpec(
+                self.system, self.method, path, self.backend, self.tol, self.maxiter,
+                model=None, diagonal_mass=False, autonomous=self.system.structure.autonomous,
+                couplings=None, constant_mass=False, legendre=None,
+            )  # fmt: skip
+        summary = self._summary
+        names = point_function_names(path, summary.m)
         fn = tuple(int(address) for address in self._points.addresses(names))
-        traits = [0] * N_TRAITS
-        traits[BAND] = int(spec.half_bandwidth) if spec.banded else -1
-        traits[HAS_LQV] = int(spec.has_Lqv)
-        traits[HAS_FV] = int(spec.has_fv)
-        traits[AUTONOMOUS] = int(spec.autonomous)
-        traits = tuple(traits)
-        # banded storage is a switch (loops.traits): the pattern, or None for dense storage
-        pattern = None
-        if spec.banded:
-            position = {pair: k for k, pair in enumerate(spec.pattern)}
-            pattern = np.array(
-                [(a, b, position.get((b, a), 0)) for a, b in spec.pattern], dtype=np.int64
-            )
-        periodic = np.array(spec.periodic or (False,) * self.system.n, dtype=np.bool_)
-        return fn, traits, pattern, periodic
+        model = (fn, loop_traits(summary), banded_pattern(summary), periodic_mask(self.system))
+        legendre = None
+        hessian = self._points.compiled.get("point_hessian")
+        if hessian is not None and path != "explicit":
+            from .run.legendre import PointLegendre
+
+            pattern = summary.pattern if summary.banded else None
+            legendre = PointLegendre(hessian.address, self.system.n, pattern)
+        couplings = (summary.has_Lqv, summary.has_fv)
+        return RunSpec(
+            self.system, self.method, path, self.backend, self.tol, self.maxiter, model=model,
+            diagonal_mass=bool(summary.diagonal_mass), autonomous=bool(summary.autonomous),
+            couplings=couplings if any(couplings) else None,
+            constant_mass=self.uses_constant_mass, legendre=legendre,
+        )  # fmt: skip
 
     def compiled_point_functions(self, names: tuple[str, ...]) -> tuple[tuple[int, ...], tuple]:
         """(addresses, traits) of the system's compiled point functions ``names``.
@@ -312,84 +279,12 @@ class Integrator:
         if self.backend != "numba":
             raise ValueError("compiled point functions need the numba backend")
         fn = tuple(int(address) for address in self._points.addresses(names))
-        return fn, self._loop_arguments[1]
+        return fn, loop_traits(self._summary)
 
     @property
     def uses_banded_storage(self) -> bool:
         """Whether the point functions write second derivatives in banded (pattern) storage."""
         return bool(self._summary.banded)
-
-    # ------------------------------------------------------------ validation
-    def _state(self, name: str, x: ArrayLike) -> NDArray[np.float64]:
-        return state_vector(name, x, self.system.n)
-
-    @staticmethod
-    def _step_size(h: float) -> float:
-        if not isinstance(h, numbers.Real) or isinstance(h, bool):
-            raise TypeError(f"h must be a real number, got {h!r}")
-        h = float(h)
-        if not np.isfinite(h) or h == 0.0:
-            raise ValueError(f"h must be finite and nonzero, got {h}")
-        return h
-
-    def _run_plan(self, h, n_steps, t_span, t0, save_every) -> tuple[float, int, float, int]:
-        """Checked (h, n_steps, t0, save_every) of a run, ``t_span`` resolved."""
-        h = self._step_size(h)
-        h, n_steps, t0 = _span_steps(h, n_steps, t_span, t0)
-        n_steps, save_every, t0 = _run_lengths(n_steps, save_every, t0)
-        return h, n_steps, t0, save_every
-
-    @cached_property
-    def _point_legendre(self):
-        """:class:`PointLegendre` of the compiled Hessian, or None where it does not apply.
-
-        Numba backend and a loop that compiles the Hessian (not the explicit one).
-        """
-        if self.backend != "numba" or self.kernel_path == "explicit":
-            return None
-        self._loop_arguments  # noqa: B018 - compiles the point functions the loop needs
-        hessian = self._points.compiled.get("point_hessian")
-        if hessian is None:
-            return None
-        from .run.legendre import PointLegendre
-
-        pattern = self._summary.pattern if self._summary.banded else None
-        return PointLegendre(hessian.address, self.system.n, pattern)
-
-    def _initial_momentum(self, q0, v0, p0, t0, prm):
-        if (v0 is None) == (p0 is None):
-            raise ValueError("give exactly one of v0 (velocities) and p0 (momenta)")
-        system = self.system
-        fast = self._point_legendre
-        if fast is not None:
-            # the compiled point functions: a few microseconds instead of ~170 (NumPy);
-            # None means singular or not finite, which the NumPy path below reports
-            if v0 is not None:
-                v = self._state("v0", v0)
-                p = fast.momenta(t0, q0, v, prm)
-            elif system.structure.quadratic_in_v:
-                p = self._state("p0", p0)
-                v = fast.velocities_of_quadratic(t0, q0, p, prm)
-                p = p if v is not None else None
-            else:
-                p = None
-            if p is not None and np.isfinite(p).all() and np.isfinite(v).all():
-                return np.asarray(p, dtype=float), np.asarray(v, dtype=float)
-        prm_dict = dict(zip(system.params, prm, strict=True))
-        if v0 is not None:
-            v = self._state("v0", v0)
-            m = system.evaluate("Lvv", t0, q0, v, system.parameter_vector(prm_dict))
-            if not np.all(np.isfinite(m)) or not is_regular(m.reshape(system.n, system.n)):
-                raise DegenerateLagrangianError(
-                    f"d2L/dv2 is singular at q0={q0}, v0={v}: the Lagrangian is degenerate there"
-                )
-            p = system.legendre(q0, v, t0, prm_dict)
-        else:
-            p = self._state("p0", p0)
-            v = system.inverse_legendre(q0, p, t0, prm_dict)
-        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(v))):
-            raise ValueError(f"the Legendre transform at q0={q0} is not finite")
-        return np.asarray(p, dtype=float), np.asarray(v, dtype=float)
 
     # ------------------------------------------------------------------- run
     def integrate(
@@ -523,307 +418,7 @@ class Integrator:
             return integrate_with_contacts(self, q0, v0, p0, contact_mode=contact_mode, **run)
         if contact_mode != "auto":
             raise ValueError(f"contact_mode={contact_mode!r} needs a system with contacts")
-        return self._integrate_smooth(q0, v0, p0, **run)
-
-    def _integrate_smooth(
-        self, q0, v0, p0, *, h, n_steps, t0, params, save_every, project, on_failure,
-        dense_output, t_span, events, progress, t_eval,
-    ) -> Trajectory:  # fmt: skip
-        """:meth:`integrate` without contacts: the loops, events, dense output."""
-        system = self.system
-        check_failure_mode(on_failure)
-        q0 = self._state("q0", q0)
-        h, n_steps, t0, save_every = self._run_plan(h, n_steps, t_span, t0, save_every)
-        if not isinstance(dense_output, bool):
-            raise TypeError(f"dense_output must be True or False, got {dense_output!r}")
-        event_list = as_events(events)
-        event_functions = [event_function(e, system) for e in event_list]
-        times = _requested_times(t_eval, t0, h, n_steps)
-        if event_list or times is not None:
-            dense_output = True
-        if dense_output and save_every != 1:
-            what = "events are located" if event_list else "dense_output=True interpolates"
-            raise ValueError(
-                f"{what} between consecutive steps: it needs save_every=1, got {save_every}"
-            )
-        prm = system.parameter_vector(params)
-        q0, p0_arr, v0_arr = self._initial_state(q0, v0, p0, t0, prm, project)
-        run = (q0, p0_arr, v0_arr, t0, h, n_steps, save_every, prm)
-        if progress is not None and not isinstance(progress, bool):
-            raise TypeError(f"progress must be True, False or None, got {progress!r}")
-
-        def restart(q, p, t):
-            return self._initial_state(q, None, p, t, prm, False)
-
-        traj, status, done, increment, interrupted = run_in_chunks(
-            run, self._run, restart, progress, terminal_stop(event_list, event_functions, prm)
-        )
-        failure = None
-        if interrupted:
-            message = (
-                f"{RunStatus.INTERRUPTED.cause} after step {done} (t = {traj.t[-1]:.6g}); the "
-                "states computed so far are kept"
-            )
-            traj = replace(traj, status=RunStatus.INTERRUPTED, message=message)
-        elif status != 0:
-            code = loop_status(status)
-            t_fail = t0 + done * h
-            # the explicit loop has no iteration, hence no increment to report
-            last = f" (last increment {increment:.3g})" if np.isfinite(increment) else ""
-            failure = f"step {done} (t = {t_fail:.6g}, h = {h:.3g}): {code.cause}{last}"
-            traj = replace(
-                traj,
-                status=code,
-                message=f"{failure}; the states before the failing step are kept. Try a smaller h.",
-            )
-        traj = self._trusted(traj, h, failure)
-        if dense_output and len(traj) >= 2:
-            traj = replace(traj, sol=traj.dense())
-        if event_list:
-            traj = self._with_events(traj, event_list, event_functions, prm)
-        if times is not None and traj.sol is not None:
-            traj = _at_times(traj, times)
-        if traj.status == RunStatus.INTERRUPTED:
-            # asked for by the user: returned in either failure mode
-            warnings.warn(traj.message, RunFailureWarning, stacklevel=3)
-            return traj
-        if not traj.success:
-            step = int(round((traj.t[-1] - t0) / h))
-            return failed_run(
-                traj, on_failure, step=step, t=float(traj.t[-1]), residual=increment, stacklevel=4
-            )
-        _warn_if_unstable(traj, h)
-        return traj
-
-    def _run(self, run: tuple) -> tuple:
-        """The loop's trajectory as it came, its status, steps done and last increment."""
-        n_steps, save_every, prm = run[5], run[6], run[7]
-        system = self.system
-        out = RunOutputs.allocate(n_steps, save_every, system.n, any(system.periodic))
-        status, done, saved, worst, increment = self._run_loop(run, out)
-        traj = out.trajectory(
-            status, done, saved, worst, save_every, system, prm, self.method.order
-        )
-        return traj, status, done, increment
-
-    def _trusted(self, traj: Trajectory, h: float, failure: str | None) -> Trajectory:
-        """``traj`` without the states reached by explosive growth (:mod:`.growth`).
-
-        Growth is judged per step whatever ``save_every`` is: the steps between
-        the saved rows where it shows (or, after a failure, between the last
-        two) are run again one by one, at most ``save_every`` steps.
-        """
-        if len(traj) < 2:
-            return traj
-        if failure is None:
-            # a completed run whose last state stays within the growth bound of its
-            # first is not examined row by row: explosive growth does not calm down
-            # again (it overflows), and the full test costs 20-60 us per short call
-            ends = np.abs(np.concatenate((traj.q[0], traj.p[0], traj.q[-1], traj.p[-1])))
-            n = traj.q.shape[1]
-            if ends[2 * n :].max() <= EXPLOSIVE_GROWTH * max(1.0, ends[: 2 * n].max()):
-                return traj
-        steps = np.round((traj.t - traj.t[0]) / h).astype(np.int64)
-        cut = explosive_row(traj.q, traj.p, steps)
-        end = cut if cut is not None else len(traj) - 1 if failure is not None else None
-        if end is None:
-            return traj
-        gap = int(steps[end] - steps[end - 1])
-        if gap > 1:
-            fine = self._steps_from(traj, end - 1, h, gap)
-            inner = explosive_row(fine.q, fine.p, np.arange(len(fine)))
-            if inner is not None:
-                # the last trusted state lies between saved rows end - 1 and end
-                kept = slice(0, end)
-                # q_reduced dropped: the row appended below has none (diagnostics reduce)
-                head = replace(traj, t=traj.t[kept], q=traj.q[kept], p=traj.p[kept], q_reduced=None)
-                if inner > 1:
-                    head = replace(
-                        head,
-                        t=np.append(head.t, fine.t[inner - 1]),
-                        q=np.vstack([head.q, fine.q[inner - 1]]),
-                        p=np.vstack([head.p, fine.p[inner - 1]]),
-                    )
-                step = int(steps[end - 1]) + inner
-                return self._untrusted(head, len(head), step, fine, inner, h, failure)
-        if cut is None:
-            return traj
-        return self._untrusted(traj, cut, int(steps[cut]), traj, cut, h, failure)
-
-    def _steps_from(self, traj: Trajectory, row: int, h: float, m: int) -> Trajectory:
-        """The m steps from saved row ``row``, every one saved."""
-        q0, p0, t0, prm = traj.q[row], traj.p[row], float(traj.t[row]), traj.params
-        with warnings.catch_warnings(), np.errstate(all="ignore"):
-            warnings.simplefilter("ignore")
-            q0, p0, v0 = self._initial_state(q0, None, p0, t0, prm, False)
-            # the raw run, failures and explosions included: they are what is looked for
-            return self._run((q0, p0, v0, t0, h, m, 1, prm))[0]
-
-    @staticmethod
-    def _untrusted(traj, keep, step, rows, r, h, failure) -> Trajectory:
-        """``traj`` cut to its first ``keep`` rows, flagged unstable from ``step`` on."""
-        with np.errstate(all="ignore"):
-            size = np.maximum(np.max(np.abs(rows.q[r])), np.max(np.abs(rows.p[r])))
-            before = max(1.0, np.max(np.abs(rows.q[r - 1])), np.max(np.abs(rows.p[r - 1])))
-        # named like a loop failure: by the step's start, the last state kept
-        t_step = traj.t[0] + (step - 1) * h
-        message = (
-            f"step {step - 1} (t = {t_step:.6g}, h = {h:.3g}): {RunStatus.UNSTABLE.cause} (the "
-            f"state grew from size {before:.3g} to {size:.3g} in one step); the states from "
-            "there on are dropped"
-        )
-        if failure is not None:
-            message += f", and then {failure}"
-        message += ". Try a smaller h."
-        kept = slice(0, keep)
-        return replace(
-            traj,
-            t=traj.t[kept],
-            q=traj.q[kept],
-            p=traj.p[kept],
-            q_reduced=None if traj.q_reduced is None else traj.q_reduced[kept],
-            status=RunStatus.UNSTABLE,
-            message=message,
-        )
-
-    def _with_events(self, traj, event_list, functions, prm) -> Trajectory:
-        """``traj`` with its events located, cut at the first terminal one."""
-        if traj.sol is None:  # fewer than 2 states: no interval to search
-            return apply_events(traj, event_list, [])
-
-        def method_step(k: int, tau: float):
-            # one step of the method from node k, of length tau (exact event times)
-            if tau == 0.0:  # the event at the node itself
-                q, p = traj.q[k].copy(), traj.p[k].copy()
-            else:
-                q, p = self._one_step(traj.q[k], traj.p[k], tau, float(traj.t[k]), prm)
-            v = self.system.inverse_legendre(q, p, traj.t[k] + tau, prm_map)
-            return q, v
-
-        prm_map = dict(zip(self.system.params, prm, strict=True))
-        records = locate_events(event_list, functions, traj.sol, prm, method_step)
-        return apply_events(traj, event_list, records)
-
-    def _initial_state(self, q0, v0, p0, t0, prm, project):
-        """(q0, p0, v0) from the user's data: Legendre transform, constraints checked."""
-        system = self.system
-        p0_arr, v0_arr = self._initial_momentum(q0, v0, p0, t0, prm)
-        if system.m:
-            q0, p0_arr, v0_arr = consistent_initial_state(
-                system, t0, q0, p0_arr, v0_arr, prm, bool(project)
-            )
-            p0_arr, v0_arr = project_momentum(system, t0, q0, p0_arr, v0_arr, prm)
-        elif project:
-            raise ValueError("project=True needs a system with constraints")
-        return q0, p0_arr, v0_arr
-
-    def _run_loop(self, run: tuple, out: RunOutputs) -> tuple:
-        """Run the loop of :attr:`kernel_path` (compiled, or the NumPy reference).
-
-        Returns (status, steps completed, rows saved, max residual, failing increment).
-        """
-        path, system, tb = self.kernel_path, self.system, self.method.tables
-        counters = (out.iterations, out.iteration_total)
-        if self.backend != "numba":
-            solver = numpy_constrained if path == "constrained" else numpy_backend
-            return solver.integrate(
-                system, tb, *run, self.tol, self.maxiter, *out.arrays, *counters
-            )
-        from .loops.readiness import ensure_loops
-
-        ensure_loops()
-        if path == "explicit":
-            return run_explicit(system, self._summary, self._loop_arguments, run, out.arrays)
-        loop, before, after = self._loop_call()
-        if path == "linear":
-            status, done, saved = loop(*before, *run, *after, *out.arrays)
-            out.iterations[: -(-done // run[6])] = 1
-            out.iteration_total[0] = done
-            return status, done, saved, 0.0, np.nan
-        result = loop(*before, *run, *after, *out.arrays, *counters)
-        if path == "varying_mass" and result[0] != 0:
-            return self._newton_from_last_row(run, out, result)
-        return result
-
-    def _newton_from_last_row(self, run: tuple, out: RunOutputs, result: tuple) -> tuple:
-        """Continue a run the varying-mass loop gave up on with Newton, from its last saved row.
-
-        The fixed-point iteration stops before a step on which it contracts too
-        slowly (or fails); the general loop then runs the rest from the last
-        saved state (a join like :meth:`stream`'s: the compensation bits and the
-        extrapolated stages start afresh). Its failures are the run's.
-        """
-        from . import loops
-
-        _, _, saved, worst, _ = result
-        q0, p0, v0, t0, h, n_steps, save_every, prm = run
-        row = saved - 1
-        start = row * save_every
-        q_row, p_row = out.q[row].copy(), out.p[row].copy()
-        turns = out.turns[row].copy() if out.periodic else None
-        # the velocities only start Newton's first guess: the compiled transform, the
-        # NumPy one where there is none
-        v_row = None
-        if self._point_legendre is not None:
-            v_row = self._point_legendre.velocities_of_quadratic(t0 + start * h, q_row, p_row, prm)
-        if v_row is None:
-            prm_map = dict(zip(self.system.params, prm, strict=True))
-            v_row = self.system.inverse_legendre(q_row, p_row, t0 + start * h, prm_map)
-        out.iterations[row:] = 0
-        turns_tail = out.turns[row:] if out.periodic else out.turns
-        tail = (out.t[row:], out.q[row:], out.p[row:], turns_tail)
-        before, after = self._newton_call()
-        status, done, saved_tail, worst_tail, increment = loops.general_loop(
-            *before, q_row, p_row, np.asarray(v_row, dtype=float), t0 + start * h, h,
-            n_steps - start, save_every, prm, *after, *tail, out.iterations[row:],
-            out.iteration_total,
-        )  # fmt: skip
-        if turns is not None:
-            out.turns[row : row + saved_tail] += turns
-        # the times as the run's own clock gives them (t0 + k h, not (t0 + start h) + j h)
-        steps = np.minimum(np.arange(saved_tail) * save_every, done)
-        out.t[row : row + saved_tail] = t0 + (start + steps) * h
-        return status, start + done, row + saved_tail, max(worst, worst_tail), increment
-
-    def _loop_call(self) -> tuple:
-        """(loop, before, after) of an implicit compiled path: the loop is called as
-        ``loop(*before, q0, p0, v0, t0, h, n_steps, save_every, prm, *after, t, q, p,
-        turns[, iterations, iteration_total])``.
-
-        ``before`` may hold work space of the loop (the stage form's diagonal mass):
-        a new one per call, so that threads running the loop at once do not share it.
-        """
-        from . import loops  # numba: imported on the first compiled run
-
-        path, system, tb = self.kernel_path, self.system, self.method.tables
-        model = self._loop_arguments
-        newton = (self.tol, self.maxiter)
-        if path == "separable":
-            st = separable_tables(self.method)
-            # a diagonal M is a compiled variant of its own (None: a full M)
-            diagonal = np.zeros(system.n) if self._summary.diagonal_mass else None
-            after = (tb.b, tb.c, *st.loop_arguments, *newton, self.uses_constant_mass)
-            return loops.stage_form_loop, (*model, diagonal), after
-        if path == "varying_mass":
-            stages = varying_mass_tables(self.method)
-            return loops.varying_mass_loop, model, (*stages.loop_arguments, *newton)
-        method = (tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation)
-        if path == "linear":
-            return loops.linear_loop, model, method
-        if path == "constrained":
-            return loops.constrained_loop, (*model, system.m), (*method, *newton)
-        return loops.general_loop, *self._newton_call()
-
-    def _newton_call(self) -> tuple[tuple, tuple]:
-        """(before, after) of the general Newton loop's call (as :meth:`_loop_call`)."""
-        tb = self.method.tables
-        method = (tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation)
-        newton = (self.tol, self.maxiter)
-        model = self._loop_arguments
-        # a switch (loops.traits): None compiles the L_qv and f_v terms out
-        spec = self._summary
-        couplings = (spec.has_Lqv, spec.has_fv) if spec.has_Lqv or spec.has_fv else None
-        return (*model, couplings), (*method, *newton)
+        return integrate_smooth(self.run_spec, q0, v0, p0, **run)
 
     def stream(
         self,
@@ -896,61 +491,10 @@ class Integrator:
             )
         if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 0:
             raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
-        return self._chunks(
-            q0, v0, p0, h, int(n_steps), int(chunk_steps), t0, params, save_every, project,
-            on_failure,
+        return stream_chunks(
+            self.integrate, q0, v0, p0, h=h, n_steps=int(n_steps), chunk_steps=int(chunk_steps),
+            t0=t0, params=params, save_every=save_every, project=project, on_failure=on_failure,
         )  # fmt: skip
-
-    def _chunks(
-        self, q0, v0, p0, h, n_steps, chunk_steps, t0, params, save_every, project, on_failure
-    ) -> Iterator[Trajectory]:
-        done = 0
-        offset = None  # whole turns of the angles, added back to later chunks' q
-        start = {"v0": v0, "p0": p0}
-        q_start: ArrayLike = q0
-        t_start = float(t0)
-        first = True
-        while first or done < n_steps:
-            steps = min(chunk_steps, n_steps - done)
-            try:
-                chunk = self.integrate(
-                    q_start,
-                    **start,
-                    h=h,
-                    n_steps=steps,
-                    t0=t_start,
-                    params=params,
-                    save_every=save_every,
-                    project=project and first,
-                    on_failure="raise",
-                )
-            except ConvergenceError as exc:
-                # report the failure in the coordinates and step count of the whole run
-                exc.step += done
-                partial = exc.partial
-                if offset is not None:
-                    partial = replace(partial, q=partial.q + offset)
-                partial = partial if first else _without_first_row(partial)
-                message = f"{partial.message} (step {exc.step} of the whole run)"
-                exc.partial = replace(partial, message=message)
-                if on_failure == "raise":
-                    raise
-                yield failed_run(
-                    exc.partial, on_failure, step=exc.step, t=exc.t, residual=exc.residual
-                )
-                return
-            if offset is not None:
-                chunk = replace(chunk, q=chunk.q + offset)
-            yield chunk if first else _without_first_row(chunk)
-            done += steps
-            first = False
-            if chunk.q_reduced is not None:
-                q_start = chunk.q_reduced[-1]
-                offset = chunk.q[-1] - chunk.q_reduced[-1]
-            else:
-                q_start = chunk.q[-1]
-            start = {"v0": None, "p0": chunk.p[-1]}
-            t_start = float(t0) + done * h  # not chunk.t[-1]: no rounding accumulates
 
     def integrate_many(
         self,
@@ -1008,27 +552,10 @@ class Integrator:
         self, q0: ArrayLike, p0: ArrayLike, h: float, t0: float = 0.0, params=None
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """One step of the position–momentum map, ``(q_k, p_k) -> (q_{k+1}, p_{k+1})``."""
-        traj = self._integrate_smooth(
-            q0, None, p0, h=h, n_steps=1, t0=t0, params=params, save_every=1, project=False,
-            on_failure="raise", dense_output=False, t_span=None, events=None, progress=None,
-            t_eval=None,
+        traj = integrate_smooth(
+            self.run_spec, q0, None, p0, h=h, n_steps=1, t0=t0, params=params,
+            on_failure="raise",
         )  # fmt: skip
-        return traj.q[-1].copy(), traj.p[-1].copy()
-
-    def _one_step(self, q, p, tau: float, t0: float, prm) -> tuple[NDArray, NDArray]:
-        """:meth:`step` from a state a run produced, without its argument checks.
-
-        The same loop call as :meth:`step` (bitwise the same result) at a fraction
-        of its Python cost: the exact event secant and the contact cuts take many.
-        """
-        q0, p0, v0 = self._initial_state(q, None, p, t0, prm, False)
-        traj, status, _, increment = self._run((q0, p0, v0, t0, tau, 1, 1, prm))
-        if status != 0:
-            raise ConvergenceError(
-                f"one step of length {tau:.3g} from t = {t0:.6g} failed: "
-                f"{loop_status(status).cause}",
-                step=0, t=t0, residual=float(increment), partial=traj,
-            )  # fmt: skip
         return traj.q[-1].copy(), traj.p[-1].copy()
 
     def step_del(
@@ -1052,8 +579,8 @@ class Integrator:
                 "step_del: the position-only DEL form is not available for constrained "
                 "systems; use integrate or step (position-momentum form with multipliers)"
             )
-        qa, qb = self._state("q0", q0), self._state("q1", q1)
-        h = self._step_size(h)
+        qa, qb = state_vector("q0", q0, system.n), state_vector("q1", q1, system.n)
+        h = step_size(h)
         t0 = float(t0)
         if not np.isfinite(t0):
             raise ValueError(f"t0 must be finite, got {t0}")
@@ -1092,185 +619,3 @@ class Integrator:
                 residual=result.increment,
             )
         return qb + result.x[-n:]
-
-
-def _requested_times(t_eval, t0: float, h: float, n_steps: int) -> NDArray | None:
-    """``t_eval`` checked: finite, in the span, monotone in the run's direction."""
-    if t_eval is None:
-        return None
-    times = np.atleast_1d(np.asarray(t_eval, dtype=float))
-    if times.ndim != 1 or not np.all(np.isfinite(times)):
-        raise ValueError("t_eval must be a 1-d array of finite times")
-    end = t0 + n_steps * h
-    lo, hi = min(t0, end), max(t0, end)
-    tiny = 8 * np.finfo(float).eps * max(1.0, abs(lo), abs(hi))
-    if times.size and (times.min() < lo - tiny or times.max() > hi + tiny):
-        raise ValueError(f"t_eval must lie in the run's span [{lo}, {hi}]")
-    if np.any(np.diff(times) * h < 0):
-        raise ValueError("t_eval must be sorted in the direction of integration")
-    return np.clip(times, lo, hi)
-
-
-def _at_times(traj: Trajectory, times: NDArray) -> Trajectory:
-    """``traj`` with rows at ``times`` from its dense output (a run cut short: those reached)."""
-    sol = traj.sol
-    reached = times[(times >= sol.t_min) & (times <= sol.t_max)]
-    return replace(traj, t=reached, q=sol(reached), p=sol.momentum(reached), q_reduced=None)
-
-
-def _span_steps(h: float, n_steps, t_span, t0) -> tuple[float, object, object]:
-    """(h, n_steps, t0) from ``t_span``: equal steps of at most |h| landing on its end."""
-    if t_span is None:
-        if n_steps is None:
-            raise ValueError("give n_steps or t_span")
-        return h, n_steps, t0
-    if n_steps is not None:
-        raise ValueError("give n_steps or t_span, not both")
-    try:
-        start, end = (float(x) for x in t_span)
-    except (TypeError, ValueError):
-        raise ValueError(f"t_span must be two numbers (t0, t_end), got {t_span!r}") from None
-    if not (np.isfinite(start) and np.isfinite(end)) or start == end:
-        raise ValueError(f"t_span must be two different finite times, got {t_span!r}")
-    if t0 != 0.0 and t0 != start:
-        raise ValueError(f"t0 = {t0} and t_span = {t_span!r} disagree: give t_span only")
-    if (end - start) * h < 0:
-        raise ValueError(f"h = {h} points away from t_span's end ({start} -> {end})")
-    steps = int(np.ceil(abs(end - start) / abs(h) * (1 - 4 * np.finfo(float).eps)))
-    return (end - start) / steps, steps, start
-
-
-def _run_lengths(n_steps, save_every, t0) -> tuple[int, int, float]:
-    """Checked ``n_steps``, ``save_every`` and ``t0``."""
-    if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 0:
-        raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
-    if (
-        isinstance(save_every, bool)
-        or not isinstance(save_every, numbers.Integral)
-        or save_every < 1
-    ):
-        raise ValueError(f"save_every must be a positive int, got {save_every!r}")
-    t0 = float(t0)
-    if not np.isfinite(t0):
-        raise ValueError(f"t0 must be finite, got {t0}")
-    return int(n_steps), int(save_every), t0
-
-
-@dataclass
-class RunOutputs:
-    """The arrays a loop writes into, allocated once per run.
-
-    Angles are saved in [-pi, pi) with the whole turns apart (``turns``; see
-    :func:`galerkin_vi.loops.common.save_row`). Iteration counts are kept per
-    saved interval, not per step: a 1e7-step run with ``save_every`` stores
-    nothing per step.
-    """
-
-    t: NDArray[np.float64]
-    q: NDArray[np.float64]
-    p: NDArray[np.float64]
-    turns: NDArray[np.float64]
-    iterations: NDArray[np.uint8]
-    iteration_total: NDArray[np.int64]
-    periodic: bool
-
-    @classmethod
-    def allocate(cls, n_steps: int, save_every: int, n: int, periodic: bool) -> RunOutputs:
-        n_saved = n_steps // save_every + 1 + (1 if n_steps % save_every else 0)
-        return cls(
-            t=np.empty(n_saved),
-            q=np.empty((n_saved, n)),
-            p=np.empty((n_saved, n)),
-            turns=np.zeros((n_saved if periodic else 1, n)),
-            iterations=np.zeros(-(-n_steps // save_every), dtype=np.uint8),
-            iteration_total=np.zeros(1, dtype=np.int64),
-            periodic=periodic,
-        )
-
-    @property
-    def arrays(self) -> tuple:
-        """(t, q, p, turns), in the loops' argument order."""
-        return self.t, self.q, self.p, self.turns
-
-    def trajectory(
-        self, status, done, saved, worst, save_every, system, prm, order=None
-    ) -> Trajectory:
-        """The saved rows as a :class:`Trajectory` (angles continued across turns)."""
-        q_saved, q_reduced = self.q[:saved], None
-        if self.periodic:
-            q_reduced = q_saved
-            q_saved = numpy_backend.unwrapped(q_saved, self.turns[:saved])
-        attempted = int(done + (status != 0))
-        return Trajectory(
-            t=self.t[:saved],
-            q=q_saved,
-            q_reduced=q_reduced,
-            p=self.p[:saved],
-            newton_iterations=self.iterations[: -(-attempted // save_every)],
-            total_newton_iterations=int(self.iteration_total[0]),
-            n_steps=attempted,
-            max_residual=float(worst),
-            system=system,
-            params=prm,
-            order=order,
-        )
-
-
-def run_explicit(system, spec, model, run, arrays) -> tuple:
-    """Störmer–Verlet with :math:`M^{-1}` formed once (a diagonal M as its diagonal only)."""
-    q0, p0, _, t0, h, n_steps, save_every, prm = run
-    n = system.n
-    mass = system.evaluate("Lvv", t0, q0, np.zeros(n), prm).reshape(n, n)
-    if not is_regular(mass):
-        raise DegenerateLagrangianError(f"the mass matrix d2L/dv2 = {mass} is singular")
-    fn, _, _, periodic = model
-    # switches (loops.traits): a run-time test of either cost 25 % per step here
-    periodic = periodic if periodic.any() else None
-    inverse = np.linalg.inv(mass)
-    # a writable copy: numba types a read-only view as another (compiled) variant
-    diagonal = np.diag(inverse).copy() if spec.diagonal_mass else None
-    from .loops import explicit_loop
-
-    time_dependent = None if spec.autonomous else True  # a switch: see loops.traits
-    status, done, saved = explicit_loop(
-        fn, periodic, time_dependent, q0, p0, t0, h, n_steps, save_every, prm, inverse,
-        diagonal, *arrays,
-    )  # fmt: skip
-    return status, done, saved, 0.0, np.nan
-
-
-def _warn_if_unstable(traj: Trajectory, h: float) -> None:
-    """Warn when the momenta grew by more than ``INSTABILITY_GROWTH`` over the run.
-
-    The growth is measured between the first and the last tenth of the saved
-    states, a ratio, so it does not depend on units (a body falling from rest
-    gains momentum linearly, a factor of about 10, not 1e6). Forced and
-    time-dependent systems, whose energy may legitimately grow, and runs with
-    fewer than 10 saved states are not checked.
-    """
-    structure = traj.system.structure
-    if len(traj) < 10 or structure.forced or not structure.autonomous:
-        return
-    # at least two rows: a start at rest has p_0 = 0, and any motion is not growth
-    tenth = max(2, len(traj) // 10)
-    early = float(np.max(np.abs(traj.p[:tenth])))
-    late = float(np.max(np.abs(traj.p[-tenth:])))
-    if early > 0.0 and late > INSTABILITY_GROWTH * early:
-        warnings.warn(
-            f"the momenta grew by a factor {late / max(early, 1e-300):.3g} over the run: "
-            f"h = {h:.3g} is probably past the method's stability limit (the discrete "
-            "solution grows exponentially); use a smaller h",
-            InstabilityWarning,
-            stacklevel=4,
-        )
-
-
-def _without_first_row(traj: Trajectory) -> Trajectory:
-    """The trajectory minus its first saved row (a chunk's start, the previous chunk's end)."""
-    return replace(
-        traj,
-        t=traj.t[1:],
-        q=traj.q[1:],
-        p=traj.p[1:],
-        q_reduced=None if traj.q_reduced is None else traj.q_reduced[1:],
-    )

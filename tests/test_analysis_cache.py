@@ -7,8 +7,9 @@ import pytest
 import sympy as sp
 
 import galerkin_vi as gvi
-from galerkin_vi import analysis_cache, codegen
-from galerkin_vi import system as system_module
+from galerkin_vi import codegen
+from galerkin_vi.model import analysis_cache
+from galerkin_vi.model import system as system_module
 
 q, v, k = sp.symbols("q v k")
 

@@ -25,8 +25,8 @@ from peers import handwritten as hw
 from peers import workprecision as wp
 
 import galerkin_vi as gvi
-from galerkin_vi import benchmark as bm
 from galerkin_vi import problems
+from galerkin_vi.tools import benchmark as bm
 from galerkin_vi.tools.benchmark import time_to_error
 
 from .conftest import BENCHMARKS_DIR

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import galerkin_vi as gvi
-from galerkin_vi import benchmark as bm
 from galerkin_vi import problems
+from galerkin_vi.tools import benchmark as bm
 
 
 @pytest.fixture(scope="module")

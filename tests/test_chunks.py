@@ -14,7 +14,7 @@ import pytest
 import sympy as sp
 
 import galerkin_vi as gvi
-from galerkin_vi import chunks
+from galerkin_vi.run import chunks
 
 q, v, k = sp.symbols("q v k")
 PENDULUM = gvi.LagrangianSystem(v**2 / 2 + sp.cos(q), [q], [v])
@@ -110,8 +110,14 @@ def test_ctrl_c_stops_a_long_compiled_run_and_keeps_its_states():
 def test_a_short_run_is_one_call(monkeypatch):
     calls = []
     integrator = gvi.Integrator(PENDULUM, gvi.Galerkin(2))
-    original = integrator._run
-    monkeypatch.setattr(integrator, "_run", lambda run: calls.append(run[5]) or original(run))
+    from galerkin_vi.run import smooth
+
+    original = smooth.run_once
+    monkeypatch.setattr(
+        smooth,
+        "run_once",
+        lambda spec, segment: calls.append(segment.n_steps) or original(spec, segment),
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         integrator.integrate([0.3], [0.0], h=0.1, n_steps=chunks.FIRST_CHUNK)

@@ -7,7 +7,7 @@ import textwrap
 
 import pytest
 
-from galerkin_vi import cli, report
+from galerkin_vi.tools import cli, report
 
 
 def test_verify_prints_the_order_table_and_passes(capsys):

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import galerkin_vi as gvi
-from galerkin_vi import dense
+from galerkin_vi.run import dense
 from galerkin_vi.run.dense import hermite, stencil_nodes
 
 q, v = sp.symbols("q v")

@@ -20,8 +20,9 @@ import pytest
 import sympy as sp
 
 import galerkin_vi as gvi
-from galerkin_vi import problems, report
+from galerkin_vi import problems
 from galerkin_vi.testing import assert_order
+from galerkin_vi.tools import report
 from galerkin_vi.tools.verification import fit_order
 
 ORDER_TOLERANCE = 0.3
@@ -152,8 +153,8 @@ def test_time_dependent_kernel_is_not_autonomous():
     assert damped._spec.autonomous
     from galerkin_vi.loops.traits import AUTONOMOUS
 
-    assert driven._loop_arguments[1][AUTONOMOUS] == 0
-    assert damped._loop_arguments[1][AUTONOMOUS] == 1
+    assert driven.run_spec.model[1][AUTONOMOUS] == 0
+    assert damped.run_spec.model[1][AUTONOMOUS] == 1
     # a force depending on t makes an autonomous L non-autonomous too
     forced = problems.forced_pendulum().system
     assert forced.structure.forced and not forced.structure.autonomous

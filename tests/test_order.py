@@ -131,7 +131,7 @@ def test_richardson_reference_matches_exact():
 def test_fit_order_masks_round_off_floor():
     h = np.array([0.1, 0.05, 0.025, 0.0125])
     errors = np.array([1e-4, 6.25e-6, 1e-14, 2e-14])
-    order, mask = gvi.verification.fit_order(h, errors, floor=1e-12)
+    order, mask = gvi.tools.verification.fit_order(h, errors, floor=1e-12)
     assert mask.tolist() == [True, True, False, False]
     assert order == pytest.approx(4.0)
 

@@ -178,7 +178,7 @@ def test_legitimate_growth_is_not_flagged():
 
 
 def test_explosive_row():
-    from galerkin_vi.run.growth import explosive_row
+    from galerkin_vi.run.trust import explosive_row
 
     steps = np.arange(4)
     calm = np.array([[0.0], [1e-8], [1e-3], [0.5]])  # from rest: measured against 1

@@ -162,13 +162,15 @@ def test_a_step_the_fixed_point_cannot_take_hands_the_run_to_newton(monkeypatch)
     fast_integrator = gvi.Integrator(system, method)
     assert fast_integrator.kernel_path == "varying_mass"
     handovers = []
-    original = gvi.Integrator._newton_from_last_row
+    from galerkin_vi.run import segment
 
-    def spy(self, run, out, result):
-        handovers.append(result[1])  # the step the fixed point stopped before
-        return original(self, run, out, result)
+    original = segment.newton_from_last_row
 
-    monkeypatch.setattr(gvi.Integrator, "_newton_from_last_row", spy)
+    def spy(spec, run, out, result):
+        handovers.append(result.done)  # the step the fixed point stopped before
+        return original(spec, run, out, result)
+
+    monkeypatch.setattr(segment, "newton_from_last_row", spy)
     fast = fast_integrator.integrate([3.0], [3.0], **run)
     assert len(handovers) == 1 and 15 < handovers[0] < 60  # halfway, not at the start
     newton = gvi.Integrator(system, method, specialize=False).integrate([3.0], [3.0], **run)

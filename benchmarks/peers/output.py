@@ -6,7 +6,7 @@ import json
 import os
 from collections.abc import Callable, Sequence
 
-from galerkin_vi import benchmark as bm
+from galerkin_vi.tools import benchmark as bm
 
 from .cases import CHAIN_BETA
 from .workprecision import best_peer_ratios, chain_growth

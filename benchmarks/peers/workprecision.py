@@ -58,7 +58,7 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 import galerkin_vi as gvi
-from galerkin_vi import benchmark as bm
+from galerkin_vi.tools import benchmark as bm
 from galerkin_vi.tools.benchmark import TARGETS, Curve, Sample, time_to_error
 
 from . import handwritten as hw

@@ -36,6 +36,9 @@ from numpy.typing import NDArray
 from ..errors import ConvergenceError, RunFailureWarning
 from ..run.events import Event
 from ..run.failures import check_failure_mode, failed_run
+from ..run.plan import run_plan, state_vector
+from ..run.smooth import integrate_smooth, one_step
+from ..run.start import initial_state
 from ..run.status import RunStatus
 from .impact import ContactFunctions, Impact, impulse, stop_slip
 
@@ -85,15 +88,15 @@ def integrate_with_contacts(
         raise ValueError(f"contact_mode must be one of {CONTACT_MODES}, got {contact_mode!r}")
     check_failure_mode(on_failure)
     system = integrator.system
-    h, n_steps, t0, _ = integrator._run_plan(h, n_steps, t_span, t0, 1)
+    h, n_steps, t0, _ = run_plan(h, n_steps, t_span, t0, 1)
     prm = system.parameter_vector(params)
     # lambdified once per system (milliseconds each): kept with it, like event functions
     functions = system.__dict__.get("_contact_functions")
     if functions is None:
         functions = system.__dict__["_contact_functions"] = ContactFunctions(system)
-    q = integrator._state("q0", q0)
+    q = state_vector("q0", q0, system.n)
     _check_initial_gaps(system, functions, t0, q, prm)
-    q, p, _ = integrator._initial_state(q, v0, p0, t0, prm, False)
+    q, p, _ = initial_state(integrator.run_spec, q, v0, p0, t0, prm)
     run = _Run(integrator, functions, prm, h)
     run.rows(t0, q, p)
     k = 0  # grid index of the current state (or of the step it lies in)
@@ -352,11 +355,10 @@ class _Run:
     def smooth(self, q, p, t_start: float, h: float, steps: int, events: bool = True):
         """``steps`` Galerkin steps of size h from (q, p); stops at a closing gap."""
         try:
-            traj = self.integrator._integrate_smooth(
-                q, None, p, h=h, n_steps=steps, t0=t_start, params=self.params,
-                save_every=1, project=False, on_failure="raise", dense_output=False,
-                t_span=None, events=self.events if events else None, progress=False,
-                t_eval=None,
+            traj = integrate_smooth(
+                self.integrator.run_spec, q, None, p, h=h, n_steps=steps, t0=t_start,
+                params=self.params, on_failure="raise",
+                events=self.events if events else None, progress=False,
             )  # fmt: skip
         except ConvergenceError as exc:
             partial = exc.partial
@@ -381,7 +383,9 @@ class _Run:
             if at_once:
                 q_hit, p_minus = q_s, p_s
             else:
-                q_hit, p_minus = self.integrator._one_step(q_s, p_s, t_hit - t_s, t_s, self.prm)
+                q_hit, p_minus = one_step(
+                    self.integrator.run_spec, q_s, p_s, t_hit - t_s, t_s, self.prm
+                )
             try:
                 p_plus, impact = impulse(
                     self.system, self.functions, j, t_hit, q_hit, p_minus, self.prm

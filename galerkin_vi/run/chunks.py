@@ -23,10 +23,15 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from .segment import LoopResult
+    from .spec import Segment
 
 __all__ = [
     "CHUNK_WORK",
@@ -59,19 +64,20 @@ def single_call(n_steps: int, save_every: int) -> bool:
 
 
 def run_in_chunks(
-    run: tuple,
+    first: Segment,
     run_chunk: Callable,
     restart: Callable,
     progress: bool | None,
     stop: Callable | None = None,
-) -> tuple[Trajectory, int, int, float, bool]:
-    """Run ``run`` = (q0, p0, v0, t0, h, n_steps, save_every, prm) in chunks.
+) -> tuple[Trajectory, LoopResult, bool]:
+    """Run the segment ``first`` in chunks.
 
     Parameters
     ----------
+    first : Segment
+        The whole run: its start state and grid.
     run_chunk : callable
-        ``run_chunk(run) -> (trajectory, status, steps done, increment)``, one
-        compiled call.
+        ``run_chunk(segment) -> (trajectory, LoopResult)``, one compiled call.
     restart : callable
         ``restart(q, p, t) -> (q0, p0, v0)``, the start of the next chunk.
     progress : bool or None
@@ -83,21 +89,22 @@ def run_in_chunks(
 
     Returns
     -------
-    trajectory, status, done, increment, interrupted
-        As ``run_chunk`` for the whole run; ``interrupted`` when Ctrl-C
-        ended it (the trajectory then holds the chunks completed).
+    trajectory, result, interrupted
+        The whole run's trajectory, the :class:`LoopResult` with the steps done
+        counted from the run's start, and whether Ctrl-C ended it (the
+        trajectory then holds the chunks completed).
     """
-    q0, p0, v0, t0, h, n_steps, save_every, prm = run
-    first = min(n_steps, _multiple(FIRST_CHUNK, save_every))
+    n_steps, save_every, t0, h = first.n_steps, first.save_every, first.t0, first.h
+    steps = min(n_steps, _multiple(FIRST_CHUNK, save_every))
     start = time.perf_counter()
-    traj, status, done, increment = run_chunk((q0, p0, v0, t0, h, first, save_every, prm))
-    per_step = (time.perf_counter() - start) / max(first, 1)
-    left = n_steps - first
-    if status != 0 or left == 0 or (stop is not None and stop(traj)):
-        return traj, status, done, increment, False
+    traj, result = run_chunk(replace(first, n_steps=steps))
+    per_step = (time.perf_counter() - start) / max(steps, 1)
+    left = n_steps - steps
+    if result.status != 0 or left == 0 or (stop is not None and stop(traj)):
+        return traj, result, False
     if progress is None:
         progress = per_step * left > PROGRESS_AFTER and sys.stderr.isatty()
-    parts, done_steps, last = [traj], first, traj
+    parts, done_steps, last = [traj], steps, traj
     chunk = chunk_steps(traj.q.shape[1], save_every)
     bar = _bar(n_steps, done_steps) if progress else None
     interrupted = False
@@ -107,16 +114,15 @@ def run_in_chunks(
             q_start = last.q_reduced[-1] if last.q_reduced is not None else last.q[-1]
             t_start = t0 + done_steps * h  # not last.t[-1]: no rounding accumulates
             q, p, v = restart(q_start, last.p[-1], t_start)
-            part, status, done, increment = run_chunk((q, p, v, t_start, h, steps, save_every, prm))
-            if last.q_reduced is not None:
-                # whole turns of the angles, carried from one chunk to the next
-                part = replace(part, q=part.q + (last.q[-1] - last.q_reduced[-1]))
+            segment = replace(first, q0=q, p0=p, v0=v, t0=t_start, n_steps=steps)
+            part, result = run_chunk(segment)
+            part = carry_turns(last, part)
             parts.append(part)
             last = part
             if bar is not None:
-                bar.update(done)
-            if status != 0:
-                done_steps += done
+                bar.update(result.done)
+            if result.status != 0:
+                done_steps += result.done
                 break
             done_steps += steps
             left -= steps
@@ -127,7 +133,15 @@ def run_in_chunks(
     finally:
         if bar is not None:
             bar.close()
-    return _stitched(parts, t0, h), status, done_steps, increment, interrupted
+    return _stitched(parts, t0, h), result._replace(done=done_steps), interrupted
+
+
+def carry_turns(previous: Trajectory, part: Trajectory) -> Trajectory:
+    """``part``, which started from ``previous``'s last reduced angles, with the whole
+    turns of the angles that ``previous`` had made added back."""
+    if previous.q_reduced is None:
+        return part
+    return replace(part, q=part.q + (previous.q[-1] - previous.q_reduced[-1]))
 
 
 def _stitched(parts: list[Trajectory], t0: float, h: float) -> Trajectory:

@@ -36,8 +36,11 @@ from numpy.typing import ArrayLike, NDArray
 from ..reference import numpy as numpy_backend
 from .chunks import single_call
 from .failures import check_failure_mode
-from .growth import EXPLOSIVE_GROWTH, INSTABILITY_GROWTH
+from .plan import run_plan
+from .spec import RunSpec
+from .start import initial_state
 from .trajectory import Trajectory
+from .trust import checks_instability, momenta_grew, within_growth_bound
 
 __all__ = ["Ensemble", "compile_statistics", "integrate_many", "member_parameters"]
 
@@ -179,11 +182,11 @@ def _compiled(integrator, run: dict) -> bool:
         return False  # the explicit loop's mass matrix depends on the parameters
     if not COMPILED_RUN.issuperset(run):
         return False  # events, dense output, t_eval, project: one integrate per member
-    h, n_steps, _, save_every = integrator._run_plan(
+    plan = run_plan(
         run.get("h"), run.get("n_steps"), run.get("t_span"), run.get("t0", 0.0),
         run.get("save_every", 1),
     )  # fmt: skip
-    return single_call(n_steps, save_every)
+    return single_call(plan.n_steps, plan.save_every)
 
 
 @dataclass
@@ -239,13 +242,14 @@ def member_outputs(integrator, q, name, x, params, run, workers) -> tuple[Member
     """
     check_failure_mode(run.get("on_failure", "warn"))
     system = integrator.system
-    h, n_steps, t0, save_every = integrator._run_plan(
+    h, n_steps, t0, save_every = run_plan(
         run.get("h"), run.get("n_steps"), run.get("t_span"), run.get("t0", 0.0),
         run.get("save_every", 1),
     )  # fmt: skip
+    spec = integrator.run_spec
     m, n = q.shape
     prms = parameter_matrix(system, params, m)
-    q0s, p0s, v0s = initial_states(integrator, q, name, x, t0, prms)
+    q0s, p0s, v0s = initial_states(spec, q, name, x, t0, prms)
     periodic = any(system.periodic)
     out = MemberOutputs.allocate(m, n_steps, save_every, n, periodic)
     fixed = (t0, h, n_steps, save_every)
@@ -253,7 +257,7 @@ def member_outputs(integrator, q, name, x, params, run, workers) -> tuple[Member
     def block(rows: slice) -> None:
         from ..loops.members import members_loop
 
-        loop, before, after = integrator._loop_call()  # work space of its own per block
+        loop, before, after = spec.loop_parts()  # work space of its own per block
         switches = [loop.__name__ == kind for kind in _LOOP_NAMES]
         members_loop(
             *(True if on else None for on in switches), before,
@@ -294,7 +298,7 @@ def parameter_matrix(system, params, m: int) -> NDArray[np.float64]:
     return prms
 
 
-def initial_states(integrator, q, name, x, t0, prms) -> tuple[NDArray, NDArray, NDArray]:
+def initial_states(spec: RunSpec, q, name, x, t0, prms) -> tuple[NDArray, NDArray, NDArray]:
     """(q0s, p0s, v0s) of the members, as :meth:`Integrator.integrate` finds them.
 
     The momenta of given velocities (and the velocities of given momenta when L
@@ -303,14 +307,14 @@ def initial_states(integrator, q, name, x, t0, prms) -> tuple[NDArray, NDArray, 
     finite), and every member of a constrained system (projections), goes the
     one-by-one way, which gives its error.
     """
-    system = integrator.system
+    system = spec.system
     m, n = q.shape
     q0s, p0s, v0s = q.copy(), np.empty((m, n)), np.empty((m, n))
     done = np.zeros(m, dtype=bool)
-    fast = integrator._point_legendre
+    fast = spec.legendre
     quadratic = system.structure.quadratic_in_v
     if fast is not None and not system.m and (name == "v0" or quadratic):
-        fn = integrator._loop_arguments[0]
+        fn = spec.model[0]
         finite = np.isfinite(q).all(axis=1) & np.isfinite(x).all(axis=1)
         v = x if name == "v0" else np.zeros((m, n))
         Lv, Lvv, regular = fast.many(fn, t0, q, v, prms)
@@ -322,9 +326,8 @@ def initial_states(integrator, q, name, x, t0, prms) -> tuple[NDArray, NDArray, 
             v0s[done] = np.linalg.solve(Lvv[done], (x[done] - Lv[done])[..., None])[..., 0]
         done &= np.isfinite(p0s).all(axis=1) & np.isfinite(v0s).all(axis=1)
     for i in np.flatnonzero(~done):
-        start = integrator._state("q0", q[i])
-        q0s[i], p0s[i], v0s[i] = integrator._initial_state(
-            start, *((x[i], None) if name == "v0" else (None, x[i])), t0, prms[i], False
+        q0s[i], p0s[i], v0s[i] = initial_state(
+            spec, q[i], *((x[i], None) if name == "v0" else (None, x[i])), t0, prms[i]
         )
     return q0s, p0s, v0s
 
@@ -390,21 +393,14 @@ def _ensemble(integrator, out: MemberOutputs, q, name, x, params, run, prms) -> 
 
 def _explosive_ends(q: NDArray, p: NDArray) -> NDArray[np.bool_]:
     """Members whose last state is past the growth bound of their first (as integrate)."""
-    first = np.maximum(np.abs(q[:, 0]).max(axis=1), np.abs(p[:, 0]).max(axis=1))
-    last = np.maximum(np.abs(q[:, -1]).max(axis=1), np.abs(p[:, -1]).max(axis=1))
-    return ~(last <= EXPLOSIVE_GROWTH * np.maximum(1.0, first))
+    return ~within_growth_bound(q[:, :1], p[:, :1], q[:, -1:], p[:, -1:])
 
 
 def _momenta_grew(system, p: NDArray) -> NDArray[np.bool_]:
-    """Members that integrate() would warn about (momenta grown 1e6-fold; see there)."""
-    N = p.shape[1]
-    structure = system.structure
-    if N < 10 or structure.forced or not structure.autonomous:
+    """Members that integrate() would warn about (:func:`~galerkin_vi.run.trust.momenta_grew`)."""
+    if not checks_instability(system, p.shape[1]):
         return np.zeros(p.shape[0], dtype=bool)
-    tenth = max(2, N // 10)
-    early = np.abs(p[:, :tenth]).max(axis=(1, 2))
-    late = np.abs(p[:, -tenth:]).max(axis=(1, 2))
-    return (early > 0.0) & (late > INSTABILITY_GROWTH * early)
+    return momenta_grew(p)
 
 
 def _on_executor(executor, integrator, q, name, x, params, run, workers) -> Ensemble:

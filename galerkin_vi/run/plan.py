@@ -1,0 +1,125 @@
+"""The checked lengths of a run: step size, number of steps, start time, saving stride.
+
+Every run option that fixes *how far* and *on which grid* a run goes is
+resolved here, once, into a frozen :class:`RunPlan`; the run stages below it
+(start, loops, events and dense output, trust) read named fields only.
+"""
+
+from __future__ import annotations
+
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "RunPlan",
+    "requested_times",
+    "run_plan",
+    "state_vector",
+    "step_size",
+]
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """The grid of a run: ``t_k = t0 + k h`` for ``k = 0 .. n_steps``, every
+    ``save_every``-th state saved (and always the last)."""
+
+    h: float
+    n_steps: int
+    t0: float
+    save_every: int
+
+    @property
+    def t_end(self) -> float:
+        return self.t0 + self.n_steps * self.h
+
+    def __iter__(self):
+        # (h, n_steps, t0, save_every): unpacking for the callers that want all four
+        return iter((self.h, self.n_steps, self.t0, self.save_every))
+
+
+def state_vector(name: str, x: ArrayLike, n: int) -> NDArray[np.float64]:
+    """``x`` as a finite float array of shape (n,); ``name`` in the error otherwise."""
+    try:
+        arr = np.array(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be an array of real numbers, got {x!r}") from exc
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must have shape ({n},), got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name} contains NaN or inf: {arr}")
+    return arr
+
+
+def step_size(h: object) -> float:
+    """``h`` checked: a finite nonzero real number."""
+    if not isinstance(h, numbers.Real) or isinstance(h, bool):
+        raise TypeError(f"h must be a real number, got {h!r}")
+    h = float(h)
+    if not np.isfinite(h) or h == 0.0:
+        raise ValueError(f"h must be finite and nonzero, got {h}")
+    return h
+
+
+def run_plan(h, n_steps, t_span, t0, save_every) -> RunPlan:
+    """The :class:`RunPlan` of ``integrate``'s arguments, ``t_span`` resolved.
+
+    With ``t_span = (t0, t1)`` instead of ``n_steps``, the steps are the
+    largest equal steps of at most ``|h|`` that land on ``t1``:
+    :math:`h \\leftarrow (t_1 - t_0) / \\lceil |t_1 - t_0| / |h| \\rceil`.
+    """
+    h = step_size(h)
+    h, n_steps, t0 = _span_steps(h, n_steps, t_span, t0)
+    if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 0:
+        raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
+    if (
+        isinstance(save_every, bool)
+        or not isinstance(save_every, numbers.Integral)
+        or save_every < 1
+    ):
+        raise ValueError(f"save_every must be a positive int, got {save_every!r}")
+    t0 = float(t0)
+    if not np.isfinite(t0):
+        raise ValueError(f"t0 must be finite, got {t0}")
+    return RunPlan(h=h, n_steps=int(n_steps), t0=t0, save_every=int(save_every))
+
+
+def _span_steps(h: float, n_steps, t_span, t0) -> tuple[float, object, object]:
+    if t_span is None:
+        if n_steps is None:
+            raise ValueError("give n_steps or t_span")
+        return h, n_steps, t0
+    if n_steps is not None:
+        raise ValueError("give n_steps or t_span, not both")
+    try:
+        start, end = (float(x) for x in t_span)
+    except (TypeError, ValueError):
+        raise ValueError(f"t_span must be two numbers (t0, t_end), got {t_span!r}") from None
+    if not (np.isfinite(start) and np.isfinite(end)) or start == end:
+        raise ValueError(f"t_span must be two different finite times, got {t_span!r}")
+    if t0 != 0.0 and t0 != start:
+        raise ValueError(f"t0 = {t0} and t_span = {t_span!r} disagree: give t_span only")
+    if (end - start) * h < 0:
+        raise ValueError(f"h = {h} points away from t_span's end ({start} -> {end})")
+    steps = int(np.ceil(abs(end - start) / abs(h) * (1 - 4 * np.finfo(float).eps)))
+    return (end - start) / steps, steps, start
+
+
+def requested_times(t_eval, t0: float, t_end: float) -> NDArray | None:
+    """``t_eval`` checked: finite, in ``[t0, t_end]`` (either order), monotone in the
+    run's direction; None when not given."""
+    if t_eval is None:
+        return None
+    times = np.atleast_1d(np.asarray(t_eval, dtype=float))
+    if times.ndim != 1 or not np.all(np.isfinite(times)):
+        raise ValueError("t_eval must be a 1-d array of finite times")
+    lo, hi = min(t0, t_end), max(t0, t_end)
+    tiny = 8 * np.finfo(float).eps * max(1.0, abs(lo), abs(hi))
+    if times.size and (times.min() < lo - tiny or times.max() > hi + tiny):
+        raise ValueError(f"t_eval must lie in the run's span [{lo}, {hi}]")
+    if np.any(np.diff(times) * (t_end - t0) < 0):
+        raise ValueError("t_eval must be sorted in the direction of integration")
+    return np.clip(times, lo, hi)

@@ -1,0 +1,188 @@
+"""The frozen description of what a run executes: system, method tables, loop, addresses.
+
+An :class:`~galerkin_vi.Integrator` builds one :class:`RunSpec` on its first
+run and keeps it; every run stage below reads it by name. Its fields are what
+the compiled loops receive, grouped as the loops' calling convention groups
+them (:meth:`RunSpec.loop_parts`):
+
+``loop(*model, q0, p0, v0, t0, h, n_steps, save_every, prm, *method,
+t, q, p, turns[, iterations, iteration_total])``
+
+``model`` is the system's part (point-function addresses, traits, banded
+pattern, periodic coordinates, and a switch or work space some loops take),
+``method`` the method's tables and the iteration's settings, and the rest the
+segment to run (:class:`Segment`) and the arrays it writes
+(:class:`~galerkin_vi.run.outputs.RunOutputs`). The tuples are unpacked only
+at the compiled call (:mod:`galerkin_vi.run.segment`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..method.galerkin import Galerkin
+from ..method.stage_form import separable_tables
+from ..method.velocity_stages import varying_mass_tables
+from ..model.system import LagrangianSystem
+
+__all__ = [
+    "LOOP_PATHS",
+    "RunSpec",
+    "Segment",
+    "banded_pattern",
+    "loop_traits",
+    "periodic_mask",
+    "point_function_names",
+]
+
+#: the loops a run can take, named by what they solve (see ``Integrator.kernel_path``)
+LOOP_PATHS = ("explicit", "linear", "separable", "varying_mass", "newton", "constrained")
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One compiled call's worth of a run: its start state and grid."""
+
+    q0: NDArray[np.float64]
+    p0: NDArray[np.float64]
+    v0: NDArray[np.float64]
+    t0: float
+    h: float
+    n_steps: int
+    save_every: int
+    prm: NDArray[np.float64]
+
+    @property
+    def arguments(self) -> tuple:
+        """The segment's arguments of a loop, in the loops' order."""
+        return (
+            self.q0, self.p0, self.v0, self.t0, self.h, self.n_steps, self.save_every, self.prm,
+        )  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class RunSpec:
+    """What every run of one integrator shares.
+
+    Attributes
+    ----------
+    system, method : LagrangianSystem, Galerkin
+    path : str
+        The loop (one of :data:`LOOP_PATHS`).
+    backend : {"numba", "numpy"}
+    tol, maxiter : float, int
+        The stage iteration's increment tolerance and cap per step.
+    model : tuple or None
+        ``(fn, traits, pattern, periodic)``: point-function addresses (ints),
+        the loops' traits (:mod:`galerkin_vi.loops.traits`), the banded
+        pattern or None, the periodic coordinates. None on the NumPy backend.
+    diagonal_mass, autonomous, couplings : bool, bool, tuple or None
+        Compiled switches: a diagonal constant mass matrix, no time argument,
+        the (L_qv, f_v) terms of the general loop (None compiles them out).
+    constant_mass : bool
+        The stage form starts each step with the constant-mass iteration.
+    legendre : PointLegendre or None
+        The compiled Legendre transform (:mod:`galerkin_vi.run.legendre`).
+    """
+
+    system: LagrangianSystem
+    method: Galerkin
+    path: str
+    backend: str
+    tol: float
+    maxiter: int
+    model: tuple | None
+    diagonal_mass: bool
+    autonomous: bool
+    couplings: tuple | None
+    constant_mass: bool
+    legendre: Any
+
+    @property
+    def order(self) -> int:
+        return self.method.order
+
+    @property
+    def periodic(self) -> bool:
+        return any(self.system.periodic)
+
+    def loop_parts(self, path: str | None = None) -> tuple:
+        """``(loop, before, after)`` of a compiled implicit loop (default: this run's).
+
+        ``before`` may hold work space of the loop (the stage form's diagonal
+        mass): a new one per call, so that threads running the loop at once
+        do not share it.
+        """
+        from .. import loops  # numba: imported on the first compiled run
+
+        path = self.path if path is None else path
+        tb = self.method.tables
+        newton = (self.tol, self.maxiter)
+        if path == "separable":
+            st = separable_tables(self.method)
+            # a diagonal M is a compiled variant of its own (None: a full M)
+            diagonal = np.zeros(self.system.n) if self.diagonal_mass else None
+            after = (tb.b, tb.c, *st.loop_arguments, *newton, self.constant_mass)
+            return loops.stage_form_loop, (*self.model, diagonal), after
+        if path == "varying_mass":
+            stages = varying_mass_tables(self.method)
+            return loops.varying_mass_loop, self.model, (*stages.loop_arguments, *newton)
+        method = (tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation)
+        if path == "linear":
+            return loops.linear_loop, self.model, method
+        if path == "constrained":
+            return loops.constrained_loop, (*self.model, self.system.m), (*method, *newton)
+        if path == "newton":
+            return loops.general_loop, (*self.model, self.couplings), (*method, *newton)
+        raise ValueError(f"the {path!r} loop is not called through loop_parts")
+
+
+def point_function_names(path: str, constraints: int) -> tuple[str, ...]:
+    """The compiled point functions a loop reads, in the order of its address slots."""
+    names = ("point_gradient",)
+    if path != "explicit":
+        names += ("point_hessian",)
+    if path == "varying_mass":
+        names += ("point_mass",)
+    if constraints:
+        names += (
+            "point_constraint",
+            "point_constraint_jacobian",
+            "point_constraint_rate",
+            "point_constraint_hessian",
+        )
+    return names
+
+
+def loop_traits(summary) -> tuple[int, ...]:
+    """The loops' traits of a system (:mod:`galerkin_vi.loops.traits`), from its spec summary.
+
+    A tuple of ints, not an array: passed by value into the loops' inlined helpers,
+    where every array argument costs an atomic reference count pair per call.
+    """
+    from ..loops.traits import AUTONOMOUS, BAND, HAS_FV, HAS_LQV, N_TRAITS
+
+    traits = [0] * N_TRAITS
+    traits[BAND] = int(summary.half_bandwidth) if summary.banded else -1
+    traits[HAS_LQV] = int(summary.has_Lqv)
+    traits[HAS_FV] = int(summary.has_fv)
+    traits[AUTONOMOUS] = int(summary.autonomous)
+    return tuple(traits)
+
+
+def banded_pattern(summary) -> NDArray[np.int64] | None:
+    """The banded storage's pattern (row, column, position of the transpose), or None for
+    dense storage (a compiled switch, :mod:`galerkin_vi.loops.traits`)."""
+    if not summary.banded:
+        return None
+    position = {pair: k for k, pair in enumerate(summary.pattern)}
+    return np.array([(a, b, position.get((b, a), 0)) for a, b in summary.pattern], dtype=np.int64)
+
+
+def periodic_mask(system: LagrangianSystem) -> NDArray[np.bool_]:
+    """Which coordinates are angles (saved in [-pi, pi) with their whole turns apart)."""
+    return np.array(system.periodic or (False,) * system.n, dtype=np.bool_)

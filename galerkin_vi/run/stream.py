@@ -1,0 +1,65 @@
+"""A run in chunks yielded one by one (:meth:`Integrator.stream`): memory bounded by a chunk."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import replace
+
+from numpy.typing import ArrayLike
+
+from ..errors import ConvergenceError
+from .failures import failed_run
+from .outputs import without_first_row
+from .trajectory import Trajectory
+
+__all__ = ["stream_chunks"]
+
+
+def stream_chunks(
+    integrate: Callable[..., Trajectory], q0: ArrayLike, v0, p0, *, h, n_steps: int,
+    chunk_steps: int, t0, params, save_every: int, project: bool, on_failure: str,
+) -> Iterator[Trajectory]:  # fmt: skip
+    """The chunks of a run of ``n_steps``, each ``integrate(q, v0=, p0=, ...)`` of at most
+    ``chunk_steps`` steps from where the last ended (see :meth:`Integrator.stream`).
+
+    Every chunk after the first leaves out its first row (the previous chunk's last);
+    angles continue across chunks from their reduced values, their whole turns added
+    back. A failure is reported in the step count of the whole run.
+    """
+    done = 0
+    offset = None  # whole turns of the angles, added back to later chunks' q
+    start = {"v0": v0, "p0": p0}
+    q_start: ArrayLike = q0
+    t_start = float(t0)
+    first = True
+    while first or done < n_steps:
+        steps = min(chunk_steps, n_steps - done)
+        try:
+            chunk = integrate(
+                q_start, **start, h=h, n_steps=steps, t0=t_start, params=params,
+                save_every=save_every, project=project and first, on_failure="raise",
+            )  # fmt: skip
+        except ConvergenceError as exc:
+            exc.step += done
+            partial = exc.partial
+            if offset is not None:
+                partial = replace(partial, q=partial.q + offset)
+            partial = partial if first else without_first_row(partial)
+            message = f"{partial.message} (step {exc.step} of the whole run)"
+            exc.partial = replace(partial, message=message)
+            if on_failure == "raise":
+                raise
+            yield failed_run(exc.partial, on_failure, step=exc.step, t=exc.t, residual=exc.residual)
+            return
+        if offset is not None:
+            chunk = replace(chunk, q=chunk.q + offset)
+        yield chunk if first else without_first_row(chunk)
+        done += steps
+        first = False
+        if chunk.q_reduced is not None:
+            q_start = chunk.q_reduced[-1]
+            offset = chunk.q[-1] - chunk.q_reduced[-1]
+        else:
+            q_start = chunk.q[-1]
+        start = {"v0": None, "p0": chunk.p[-1]}
+        t_start = float(t0) + done * h  # not chunk.t[-1]: no rounding accumulates
