@@ -11,26 +11,15 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from . import codegen
-from .errors import ConvergenceError
 from .method.galerkin import Galerkin
-from .method.stage_form import has_stage_form
-from .method.velocity_stages import MIN_FIXED_POINT_DEGREE, has_velocity_stages
 from .model.system import LagrangianSystem
-from .newton import CONVERGED, newton_solve
-from .reference import numpy as numpy_backend
 from .reference import resolve_backend
+from .run.del_step import del_step
 from .run.ensemble import integrate_many
-from .run.failures import check_failure_mode
-from .run.plan import state_vector, step_size
+from .run.loop_choice import loop_path
 from .run.smooth import integrate_smooth
-from .run.spec import (
-    RunSpec,
-    banded_pattern,
-    loop_traits,
-    periodic_mask,
-    point_function_names,
-)
-from .run.stream import stream_chunks
+from .run.spec import RunSpec, compiled_run_spec, loop_traits, reference_run_spec
+from .run.stream import check_stream_arguments, stream_chunks
 from .run.trajectory import Trajectory
 
 __all__ = ["Integrator"]
@@ -120,60 +109,12 @@ class Integrator:
 
     @property
     def kernel_path(self) -> str:
-        r"""Which time loop runs: constrained, explicit, linear, separable, varying_mass or newton.
-
-        ``"constrained"`` for every system with constraints (multipliers in the
-        stage equations, momentum projected at each step's end; both backends).
-        Otherwise, with the compiled backend and ``specialize=True`` (default):
-
-        - ``"explicit"``: degree 1 with two Lobatto points on a separable
-          :math:`L = \tfrac12 v^TMv + a(t)\cdot v - V(t, q)` (constant :math:`M`) is
-          Störmer–Verlet in closed form, with :math:`M^{-1}` formed once and no Newton;
-        - ``"linear"``: a Lagrangian quadratic in :math:`(q, v)` (constant
-          Hessian) has linear stage equations: one LU factorisation per run and
-          one triangular solve per step;
-        - ``"separable"``: any other :math:`L = \tfrac12 v^TMv + a(t)\cdot v + U(t, q)`
-          with constant :math:`M` and forces :math:`f(t, q)`: Newton on the
-          stage increments at the implicit quadrature points only
-          (:mod:`galerkin_vi.method.stage_form`; the :math:`s - 1` interior nodes for
-          collocated Lobatto, the :math:`s` points for Gauss), momenta updated
-          in increment form with compensated summation;
-        - ``"varying_mass"``: any other :math:`L = \tfrac12 v^TM(t, q)v + a(t, q)\cdot v
-          - U(t, q)` (a mass matrix that varies, or velocity couplings :math:`a(q)`;
-          forces may depend on :math:`v`), stored dense, with Gauss quadrature of
-          ``degree >= 3`` points (Gauss collocation): fixed-point iteration on the
-          stage velocities with the exact mass matrix at every stage
-          (:mod:`galerkin_vi.method.velocity_stages`), no Jacobian. A step on which the
-          iteration contracts too slowly hands the run over to ``"newton"`` from the
-          last saved state on;
-        - ``"newton"``: the general Newton iteration (also the NumPy backend).
-        """
-        if self.system.m:
-            return "constrained"
-        if self.backend != "numba" or not self.specialize:
-            return "newton"
-        structure, method = self.system.structure, self.method
-        if (
-            structure.separable
-            and structure.zero_fv
-            and method.degree == 1
-            and method.quadrature.family == "gauss_lobatto"
-            and method.quadrature.npoints == 2
-        ):
-            return "explicit"
-        if structure.quadratic:
-            return "linear"
-        if has_stage_form(self.system):
-            return "separable"
-        if (
-            self.fixed_point
-            and structure.quadratic_in_v
-            and has_velocity_stages(method)
-            and method.degree >= MIN_FIXED_POINT_DEGREE
-            and not self._summary.banded
-        ):
-            return "varying_mass"
-        return "newton"
+        """Which time loop runs: constrained, explicit, linear, separable, varying_mass or
+        newton (:func:`galerkin_vi.run.loop_choice.loop_path` says when each)."""
+        return loop_path(
+            self.system, self.method, self.backend, self.specialize, self.fixed_point,
+            lambda: self._summary.banded,
+        )  # fmt: skip
 
     @property
     def uses_constant_mass(self) -> bool:
@@ -244,29 +185,17 @@ class Integrator:
         """
         path = self.kernel_path
         if self.backend != "numba":
-            return RunSpec(
-                self.system, self.method, path, self.backend, self.tol, self.maxiter,
-                model=None, diagonal_mass=False, autonomous=self.system.structure.autonomous,
-                couplings=None, constant_mass=False, legendre=None,
-            )  # fmt: skip
-        summary = self._summary
-        names = point_function_names(path, summary.m)
-        fn = tuple(int(address) for address in self._points.addresses(names))
-        model = (fn, loop_traits(summary), banded_pattern(summary), periodic_mask(self.system))
-        legendre = None
-        hessian = self._points.compiled.get("point_hessian")
-        if hessian is not None and path != "explicit":
-            from .run.legendre import PointLegendre
-
-            pattern = summary.pattern if summary.banded else None
-            legendre = PointLegendre(hessian.address, self.system.n, pattern)
-        couplings = (summary.has_Lqv, summary.has_fv)
-        return RunSpec(
-            self.system, self.method, path, self.backend, self.tol, self.maxiter, model=model,
-            diagonal_mass=bool(summary.diagonal_mass), autonomous=bool(summary.autonomous),
-            couplings=couplings if any(couplings) else None,
-            constant_mass=self.uses_constant_mass, legendre=legendre,
-        )  # fmt: skip
+            return reference_run_spec(self.system, self.method, path, self.tol, self.maxiter)
+        return compiled_run_spec(
+            self.system,
+            self.method,
+            path,
+            self.tol,
+            self.maxiter,
+            self._summary,
+            self._points,
+            constant_mass=self.uses_constant_mass,
+        )
 
     def compiled_point_functions(self, names: tuple[str, ...]) -> tuple[tuple[int, ...], tuple]:
         """(addresses, traits) of the system's compiled point functions ``names``.
@@ -475,22 +404,7 @@ class Integrator:
             For bad arguments, when ``stream`` is called.
         """
         # validated here, when stream() is called, not at the first next()
-        check_failure_mode(on_failure)
-        if (
-            isinstance(chunk_steps, bool)
-            or not isinstance(chunk_steps, numbers.Integral)
-            or chunk_steps < 1
-        ):
-            raise ValueError(f"chunk_steps must be a positive int, got {chunk_steps!r}")
-        if not isinstance(save_every, numbers.Integral) or save_every < 1:
-            raise ValueError(f"save_every must be a positive int, got {save_every!r}")
-        if chunk_steps % save_every:
-            raise ValueError(
-                f"chunk_steps ({chunk_steps}) must be a multiple of save_every ({save_every}) "
-                "for the chunks to save the rows one run would"
-            )
-        if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 0:
-            raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
+        check_stream_arguments(n_steps, chunk_steps, save_every, on_failure)
         return stream_chunks(
             self.integrate, q0, v0, p0, h=h, n_steps=int(n_steps), chunk_steps=int(chunk_steps),
             t0=t0, params=params, save_every=save_every, project=project, on_failure=on_failure,
@@ -575,47 +489,12 @@ class Integrator:
         """
         system = self.system
         if system.m:
-            raise NotImplementedError(
-                "step_del: the position-only DEL form is not available for constrained "
-                "systems; use integrate or step (position-momentum form with multipliers)"
+            raise ValueError(
+                "step_del: the position-only DEL form has no multipliers, so it does not "
+                "apply to constrained systems; use integrate or step (position-momentum "
+                "form with multipliers)"
             )
-        qa, qb = state_vector("q0", q0, system.n), state_vector("q1", q1, system.n)
-        h = step_size(h)
-        t0 = float(t0)
-        if not np.isfinite(t0):
-            raise ValueError(f"t0 must be finite, got {t0}")
         prm = system.parameter_vector(params)
-        tb = self.method.tables
-        s = tb.d.size - 1
-        n = system.n
-        t1 = float(t0) + h
-        # unknowns as increments: interior points of step k-1 from q0, all of step k from q1;
-        # guess: the line through q0, q1 for step k-1, continued for step k
-        step = qb - qa
-        x0 = np.concatenate([(tb.d[1:s, None] * step).ravel(), (tb.d[1:, None] * step).ravel()])
-        m = (s - 1) * n
-        zero = np.zeros((1, n))
-
-        def residual_and_jacobian(x: NDArray) -> tuple[NDArray, NDArray]:
-            Ca = np.vstack([zero, x[:m].reshape(s - 1, n), step[None, :]])
-            Cb = np.vstack([zero, x[m:].reshape(s, n)])
-            Ga, Ha = numpy_backend.discrete_hessian(system, tb, float(t0), h, qa, Ca, prm)
-            Gb, Hb = numpy_backend.discrete_hessian(system, tb, t1, h, qb, Cb, prm)
-            # equations: interior of step k-1, DEL at q_k, interior of step k
-            R = np.concatenate([Ga[1:s].ravel(), Ga[s] + Gb[0], Gb[1:s].ravel()])
-            J = np.zeros((R.size, x.size))
-            J[:m, :m] = Ha[1:s, :, 1:s, :].reshape(m, m)
-            J[m : m + n, :m] = Ha[s, :, 1:s, :].reshape(n, m)
-            J[m : m + n, m:] = Hb[0, :, 1:, :].reshape(n, s * n)
-            J[m + n :, m:] = Hb[1:s, :, 1:, :].reshape(m, s * n)
-            return R, J
-
-        result = newton_solve(residual_and_jacobian, x0, tol=self.tol, maxiter=self.maxiter)
-        if result.status != CONVERGED:
-            raise ConvergenceError(
-                f"step_del: Newton iteration did not converge (increment {result.increment:.3g})",
-                step=0,
-                t=t1,
-                residual=result.increment,
-            )
-        return qb + result.x[-n:]
+        return del_step(
+            system, self.method.tables, q0, q1, h, t0, prm, tol=self.tol, maxiter=self.maxiter
+        )

@@ -34,9 +34,11 @@ __all__ = [
     "RunSpec",
     "Segment",
     "banded_pattern",
+    "compiled_run_spec",
     "loop_traits",
     "periodic_mask",
     "point_function_names",
+    "reference_run_spec",
 ]
 
 #: the loops a run can take, named by what they solve (see ``Integrator.kernel_path``)
@@ -186,3 +188,37 @@ def banded_pattern(summary) -> NDArray[np.int64] | None:
 def periodic_mask(system: LagrangianSystem) -> NDArray[np.bool_]:
     """Which coordinates are angles (saved in [-pi, pi) with their whole turns apart)."""
     return np.array(system.periodic or (False,) * system.n, dtype=np.bool_)
+
+
+def reference_run_spec(system, method, path: str, tol: float, maxiter: int) -> RunSpec:
+    """The :class:`RunSpec` of the NumPy reference backend (no compiled parts)."""
+    return RunSpec(
+        system, method, path, "numpy", tol, maxiter, model=None, diagonal_mass=False,
+        autonomous=system.structure.autonomous, couplings=None, constant_mass=False,
+        legendre=None,
+    )  # fmt: skip
+
+
+def compiled_run_spec(
+    system, method, path: str, tol: float, maxiter: int, summary, points, constant_mass: bool
+) -> RunSpec:
+    """The :class:`RunSpec` of the compiled loops: ``summary`` is the system's
+    :class:`~galerkin_vi.codegen.SpecSummary`, ``points`` its compiled point functions
+    (loaded or compiled here, those the loop of ``path`` reads)."""
+    names = point_function_names(path, summary.m)
+    fn = tuple(int(address) for address in points.addresses(names))
+    model = (fn, loop_traits(summary), banded_pattern(summary), periodic_mask(system))
+    legendre = None
+    hessian = points.compiled.get("point_hessian")
+    if hessian is not None and path != "explicit":
+        from .legendre import PointLegendre
+
+        pattern = summary.pattern if summary.banded else None
+        legendre = PointLegendre(hessian.address, system.n, pattern)
+    couplings = (summary.has_Lqv, summary.has_fv)
+    return RunSpec(
+        system, method, path, "numba", tol, maxiter, model=model,
+        diagonal_mass=bool(summary.diagonal_mass), autonomous=bool(summary.autonomous),
+        couplings=couplings if any(couplings) else None, constant_mass=constant_mass,
+        legendre=legendre,
+    )  # fmt: skip

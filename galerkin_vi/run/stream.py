@@ -2,17 +2,38 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Callable, Iterator
 from dataclasses import replace
 
 from numpy.typing import ArrayLike
 
 from ..errors import ConvergenceError
-from .failures import failed_run
+from .failures import check_failure_mode, failed_run
 from .outputs import without_first_row
 from .trajectory import Trajectory
 
-__all__ = ["stream_chunks"]
+__all__ = ["check_stream_arguments", "stream_chunks"]
+
+
+def check_stream_arguments(n_steps, chunk_steps, save_every, on_failure) -> None:
+    """The arguments of :meth:`Integrator.stream` that the chunks depend on, checked."""
+    check_failure_mode(on_failure)
+    if (
+        isinstance(chunk_steps, bool)
+        or not isinstance(chunk_steps, numbers.Integral)
+        or chunk_steps < 1
+    ):
+        raise ValueError(f"chunk_steps must be a positive int, got {chunk_steps!r}")
+    if not isinstance(save_every, numbers.Integral) or save_every < 1:
+        raise ValueError(f"save_every must be a positive int, got {save_every!r}")
+    if chunk_steps % save_every:
+        raise ValueError(
+            f"chunk_steps ({chunk_steps}) must be a multiple of save_every ({save_every}) "
+            "for the chunks to save the rows one run would"
+        )
+    if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 0:
+        raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
 
 
 def stream_chunks(
