@@ -57,10 +57,11 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import ConvergenceError
-from .integrator import Integrator, state_vector
+from .integrator import Integrator
 from .method.galerkin import Galerkin
 from .model.system import LagrangianSystem
 from .run.failures import check_failure_mode, failed_run
+from .run.plan import state_vector
 from .run.status import RunStatus
 from .run.trajectory import Trajectory
 
