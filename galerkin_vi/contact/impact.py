@@ -166,9 +166,10 @@ def impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) ->
     e = contact.restitution
     slip = functions.slip_matrix(j, t, q, prm)
     if slip is None:
-        v_plus, lam = _solve(system, t, q, p, v_minus, prm, g[None], g[None], [-e * u_minus])
+        D, targets = _with_constraints(system, t, q, prm, g[None], [-e * u_minus])
+        v_plus, lam = _solve(system, t, q, p, v_minus, prm, D, D, targets)
         mode, tangential = "frictionless", np.zeros(0)
-        p_plus = p + lam[0] * g
+        p_plus = p + D.T @ lam
     else:
         rows, w0 = slip
         G = np.vstack([g, rows])
@@ -246,9 +247,9 @@ def inverse_impulse(system, functions: ContactFunctions, j: int, t: float, q, p,
     u_plus = float(g @ v_plus)
     if not u_plus > 0.0:
         raise ValueError(f"contact {j} at t = {t}: not separating (normal velocity {u_plus})")
-    target = -u_plus / contact.restitution
-    v_minus, lam = _solve(system, t, q, p, v_plus, prm, g[None], g[None], [target])
-    p_minus = p + lam[0] * g
+    D, targets = _with_constraints(system, t, q, prm, g[None], [-u_plus / contact.restitution])
+    v_minus, lam = _solve(system, t, q, p, v_plus, prm, D, D, targets)
+    p_minus = p + D.T @ lam
     H = system.hamiltonian(np.vstack([q, q]), np.vstack([p_minus, p]), t, params)
     impact = Impact(
         t=float(t),
@@ -275,6 +276,20 @@ def stop_slip(system, functions: ContactFunctions, j: int, t: float, q, p, prm):
     v = system.inverse_legendre(q, p, t, params)
     _, lam = _solve(system, t, q, p, v, prm, rows, rows, -w0)
     return p + rows.T @ lam
+
+
+def _with_constraints(system, t, q, prm, D, targets) -> tuple[NDArray, list]:
+    r"""The impulse directions ``D`` and velocity targets with the holonomic constraints'.
+
+    A constrained system's impulse includes the constraints' reactions
+    :math:`G^{\mathsf T}\mu` (G = :math:`\partial g/\partial q`), whose size keeps the
+    velocity after the impact on the hidden constraint :math:`G v + g_t = 0`.
+    """
+    if not system.m:
+        return D, list(targets)
+    jac = system.constraint_jacobian(q, t, prm)
+    rate = system.constraint_rate(q, t, prm)
+    return np.vstack([D, jac]), [*targets, *(-rate)]
 
 
 def _solve(system, t, q, p, v0, prm, D, C, targets) -> tuple[NDArray, NDArray]:

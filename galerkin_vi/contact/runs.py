@@ -146,6 +146,7 @@ def _drive(run: _Run, t0: float, n_steps: int, contact_mode: str) -> _Stop | Non
     except _Terminal:
         return None  # the events' pass after the run cuts it at the event
     except KeyboardInterrupt:
+        run.settle()
         t_last = float(run.last()[0])
         step = int(round((t_last - t0) / run.h))
         message = (
@@ -429,6 +430,13 @@ class _Run:
         self._q.append(np.atleast_2d(q))
         self._p.append(np.atleast_2d(p))
 
+    def settle(self) -> None:
+        """The rows and impacts made consistent after Ctrl-C, which may fall between appends."""
+        chunks = min(len(self._t), len(self._q), len(self._p), len(self._grid))
+        del self._t[chunks:], self._q[chunks:], self._p[chunks:], self._grid[chunks:]
+        t_last = self._t[-1][-1]
+        self.impacts = [i for i in self.impacts if (i.t - t_last) * self.sign <= 0.0]
+
     def grid(self) -> NDArray[np.bool_]:
         """Per row: whether it is a grid row (:func:`.outputs.saved_every`)."""
         return np.concatenate(self._grid)
@@ -561,10 +569,6 @@ class _Run:
         from ..run.trajectory import Trajectory
 
         t, q, p = np.concatenate(self._t), np.concatenate(self._q), np.concatenate(self._p)
-        # Ctrl-C may fall between the appends of one row
-        rows = min(len(t), len(q), len(p))
-        t, q, p = t[:rows], q[:rows], p[:rows]
-        impacts = [i for i in self.impacts if (i.t - t[-1]) * self.sign <= 0.0]
         return Trajectory(
             t=t,
             q=q,
@@ -578,7 +582,7 @@ class _Run:
             order=self.integrator.method.order,
             status=status,
             message=message,
-            impacts=impacts,
+            impacts=list(self.impacts),
             contact_forces=self._contact_forces(),
         )
 
