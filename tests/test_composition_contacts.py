@@ -10,6 +10,7 @@ method's accuracy where the flights are not polynomials.
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -350,3 +351,37 @@ def test_events_and_dense_output_need_every_step_saved():
         warnings.simplefilter("error")
         traj = integrator.integrate(*START, h=1e-2, n_steps=10, events=y, dense_output=True)
     assert traj.t_events[0].size == 0 and traj.sol is not None
+
+
+def test_a_failed_step_keeps_the_rows_before_with_their_dense_output_and_events():
+    integrator = gvi.Integrator(_ball(1.0), gvi.Galerkin(2))
+    plain = integrator.integrate(*START, h=1e-2, n_steps=400)
+    smooth = integrator._integrate_smooth
+    calls = []
+
+    def failing(*args, **kwargs):
+        # the first smooth piece after the fifth call fails after its steps, as a loop
+        # reports it (a piece ended by an impact is not a failed one)
+        calls.append(1)
+        traj = smooth(*args, **kwargs)
+        if len(calls) >= 5 and traj.status == gvi.RunStatus.COMPLETED:
+            partial = replace(traj, status=gvi.RunStatus.NO_CONVERGENCE, message="failed")
+            raise gvi.ConvergenceError("failed", step=0, t=0.0, residual=1.0, partial=partial)
+        return traj
+
+    integrator._integrate_smooth = failing
+    options = dict(h=1e-2, n_steps=400, events=y - 0.5, dense_output=True)
+    calls.clear()
+    with pytest.warns(gvi.RunFailureWarning, match="failed"):
+        traj = integrator.integrate(*START, **options)
+    assert traj.status == gvi.RunStatus.NO_CONVERGENCE and 10 < len(traj) < len(plain)
+    np.testing.assert_array_equal(traj.p, plain.p[: len(traj)])
+    assert traj.sol.t_max == traj.t[-1]
+    down, up = _flight_crossings(1.0, 0.5, 3)
+    crossings = np.sort(np.concatenate([down, up]))
+    np.testing.assert_allclose(traj.t_events[0], crossings[crossings <= traj.t[-1]], atol=1e-10)
+    calls.clear()
+    with pytest.raises(gvi.ConvergenceError) as raised:
+        integrator.integrate(*START, **options, on_failure="raise")
+    np.testing.assert_array_equal(raised.value.partial.t, traj.t)
+    assert raised.value.partial.sol is not None
