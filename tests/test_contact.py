@@ -208,8 +208,8 @@ def test_bad_contacts_are_named():
     integrator = gvi.Integrator(_ball(0.5), gvi.Galerkin(2))
     with pytest.raises(ValueError, match=r"contacts\[0\] .gap y.: q0 = \[-0.1\] penetrates"):
         integrator.integrate([-0.1], [0.0], h=0.01, n_steps=3)
-    with pytest.raises(NotImplementedError, match="does not take save_every"):
-        integrator.integrate([1.0], [0.0], h=0.01, n_steps=3, save_every=2)
+    with pytest.raises(ValueError, match="interpolates between consecutive steps"):
+        integrator.integrate([1.0], [0.0], h=0.01, n_steps=3, save_every=2, dense_output=True)
     with pytest.raises(ValueError, match="contact_mode must be one of"):
         integrator.integrate([1.0], [0.0], h=0.01, n_steps=3, contact_mode="soft")
     smooth = gvi.Integrator(gvi.LagrangianSystem(L, [x, y], [vx, vy]), gvi.Galerkin(1))

@@ -32,7 +32,14 @@ import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 
-__all__ = ["ContactFunctions", "Impact", "impulse", "stop_slip"]
+__all__ = [
+    "ContactFunctions",
+    "Impact",
+    "impulse",
+    "inverse_impulse",
+    "irreversible_contacts",
+    "stop_slip",
+]
 
 _NEWTON_ITERATIONS = 30
 _DIRECTION_ITERATIONS = 50
@@ -159,9 +166,10 @@ def impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) ->
     e = contact.restitution
     slip = functions.slip_matrix(j, t, q, prm)
     if slip is None:
-        v_plus, lam = _solve(system, t, q, p, v_minus, prm, g[None], g[None], [-e * u_minus])
+        D, targets = _with_constraints(system, t, q, prm, g[None], [-e * u_minus])
+        v_plus, lam = _solve(system, t, q, p, v_minus, prm, D, D, targets)
         mode, tangential = "frictionless", np.zeros(0)
-        p_plus = p + lam[0] * g
+        p_plus = p + D.T @ lam
     else:
         rows, w0 = slip
         G = np.vstack([g, rows])
@@ -190,6 +198,71 @@ def impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) ->
     return p_plus, impact
 
 
+def irreversible_contacts(system) -> list[str]:
+    r"""Why each contact's impact law cannot be run backwards in time (empty: all can).
+
+    Newton's law :math:`u^+ = -e\,u^-` gives :math:`u^- = -u^+/e` only for
+    e > 0; Coulomb friction maps a range of pre-impact slips to one sticking
+    post-impact state, so the law has no inverse with friction.
+    """
+    reasons = []
+    for j, contact in enumerate(system.contacts):
+        where = f"contacts[{j}] (gap {contact.gap})"
+        if contact.restitution == 0.0:
+            reasons.append(
+                f"{where}: restitution e = 0 (a plastic impact forgets the pre-impact "
+                "normal velocity: u- = -u+/e is undefined)"
+            )
+        elif contact.friction > 0.0:
+            reasons.append(
+                f"{where}: friction mu = {contact.friction} (a sticking impact forgets the "
+                "pre-impact slip: Coulomb's law has no inverse)"
+            )
+    return reasons
+
+
+def inverse_impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) -> tuple:
+    r"""The momentum before an impact of contact ``j`` whose post-impact momentum is ``p``.
+
+    The inverse of :func:`impulse` for a frictionless contact with e > 0, for runs
+    backwards in time: :math:`p^- = p^+ - \Lambda_n \nabla\varphi(q)` with
+    :math:`u^- = -u^+/e`. Returns ``(p_minus, impact)``, the :class:`Impact` in
+    physical time (``normal_velocity`` = :math:`(u^-, u^+)`, ``energy_lost`` =
+    :math:`H(q, p^-) - H(q, p^+)`, as the forward run reports it).
+
+    Raises
+    ------
+    ValueError
+        When the contact is not separating (:math:`u^+ \le 0`): it was not hit
+        forward in time; or when its law has no inverse
+        (:func:`irreversible_contacts`).
+    """
+    contact = system.contacts[j]
+    if contact.restitution == 0.0 or contact.friction > 0.0:
+        raise ValueError(irreversible_contacts(system)[0])
+    params = dict(zip(system.params, prm, strict=True))
+    q, p = np.asarray(q, dtype=float), np.asarray(p, dtype=float)
+    v_plus = system.inverse_legendre(q, p, t, params)
+    g = functions.gradient(j, t, q, prm)
+    u_plus = float(g @ v_plus)
+    if not u_plus > 0.0:
+        raise ValueError(f"contact {j} at t = {t}: not separating (normal velocity {u_plus})")
+    D, targets = _with_constraints(system, t, q, prm, g[None], [-u_plus / contact.restitution])
+    v_minus, lam = _solve(system, t, q, p, v_plus, prm, D, D, targets)
+    p_minus = p + D.T @ lam
+    H = system.hamiltonian(np.vstack([q, q]), np.vstack([p_minus, p]), t, params)
+    impact = Impact(
+        t=float(t),
+        contact=j,
+        normal_impulse=float(-lam[0]),
+        tangential_impulse=np.zeros(0),
+        mode="frictionless",
+        normal_velocity=(float(g @ v_minus), u_plus),
+        energy_lost=float(H[0] - H[1]),
+    )
+    return p_minus, impact
+
+
 def stop_slip(system, functions: ContactFunctions, j: int, t: float, q, p, prm):
     r"""The momentum that stops the slip of contact j, the normal velocity kept.
 
@@ -203,6 +276,20 @@ def stop_slip(system, functions: ContactFunctions, j: int, t: float, q, p, prm):
     v = system.inverse_legendre(q, p, t, params)
     _, lam = _solve(system, t, q, p, v, prm, rows, rows, -w0)
     return p + rows.T @ lam
+
+
+def _with_constraints(system, t, q, prm, D, targets) -> tuple[NDArray, list]:
+    r"""The impulse directions ``D`` and velocity targets with the holonomic constraints'.
+
+    A constrained system's impulse includes the constraints' reactions
+    :math:`G^{\mathsf T}\mu` (G = :math:`\partial g/\partial q`), whose size keeps the
+    velocity after the impact on the hidden constraint :math:`G v + g_t = 0`.
+    """
+    if not system.m:
+        return D, list(targets)
+    jac = system.constraint_jacobian(q, t, prm)
+    rate = system.constraint_rate(q, t, prm)
+    return np.vstack([D, jac]), [*targets, *(-rate)]
 
 
 def _solve(system, t, q, p, v0, prm, D, C, targets) -> tuple[NDArray, NDArray]:

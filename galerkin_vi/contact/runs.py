@@ -40,7 +40,15 @@ from ..run.plan import run_plan, state_vector
 from ..run.smooth import integrate_smooth, one_step
 from ..run.start import initial_state
 from ..run.status import RunStatus
-from .impact import ContactFunctions, Impact, impulse, stop_slip
+from .impact import (
+    ContactFunctions,
+    Impact,
+    impulse,
+    inverse_impulse,
+    irreversible_contacts,
+    stop_slip,
+)
+from .outputs import Watch, finish, run_options
 
 __all__ = ["MAX_IMPACTS_PER_STEP", "PENETRATION", "integrate_with_contacts"]
 
@@ -68,27 +76,26 @@ def integrate_with_contacts(
     integrator, q0, v0, p0, *, h, n_steps, t0, params, save_every, project, on_failure,
     dense_output, t_span, events, progress, t_eval, contact_mode,
 ):  # fmt: skip
-    """:meth:`Integrator.integrate` of a system with contacts (the module's method)."""
-    unsupported = [
-        name
-        for name, given in (
-            ("save_every", save_every != 1),
-            ("dense_output", bool(dense_output)),
-            ("events", events is not None),
-            ("t_eval", t_eval is not None),
-            ("project", bool(project)),
-        )  # fmt: skip
-        if given
-    ]
-    if unsupported:
-        raise NotImplementedError(
-            f"a system with contacts does not take {', '.join(unsupported)} yet"
-        )
+    """:meth:`Integrator.integrate` of a system with contacts (the module's method).
+
+    Every option of a smooth run applies (:mod:`.outputs`): ``save_every``,
+    ``dense_output`` (piecewise between impacts), ``events``, ``t_eval``,
+    ``project`` (constrained systems), ``progress``, Ctrl-C, ``on_failure``,
+    ``t_span``. A negative ``h`` runs backwards in time with the inverse impact
+    law (:func:`.impact.inverse_impulse`): frictionless contacts with e > 0
+    only, isolated impacts only (``contact_mode="auto"`` stops where a contact
+    persists, as ``"event"`` does).
+    """
     if contact_mode not in CONTACT_MODES:
         raise ValueError(f"contact_mode must be one of {CONTACT_MODES}, got {contact_mode!r}")
     check_failure_mode(on_failure)
     system = integrator.system
-    h, n_steps, t0, _ = run_plan(h, n_steps, t_span, t0, 1)
+    h, n_steps, t0, save_every = run_plan(h, n_steps, t_span, t0, save_every)
+    if h < 0:
+        _check_backward(system, contact_mode)
+    options = run_options(
+        system, h, n_steps, t0, save_every, dense_output, events, t_eval, progress
+    )
     prm = system.parameter_vector(params)
     # lambdified once per system (milliseconds each): kept with it, like event functions
     functions = system.__dict__.get("_contact_functions")
@@ -96,9 +103,28 @@ def integrate_with_contacts(
         functions = system.__dict__["_contact_functions"] = ContactFunctions(system)
     q = state_vector("q0", q0, system.n)
     _check_initial_gaps(system, functions, t0, q, prm)
-    q, p, _ = initial_state(integrator.run_spec, q, v0, p0, t0, prm)
+    q, p, _ = initial_state(integrator.run_spec, q, v0, p0, t0, prm, project)
+    if project:  # the projected q0 must be outside the contacts too
+        _check_initial_gaps(system, functions, t0, q, prm)
     run = _Run(integrator, functions, prm, h)
+    if options.terminal or options.progress is not False:
+        run.watch = Watch(options, system, prm, n_steps)
+        if options.terminal:
+            run.longest_piece = FIRST_PIECE  # so that the run stops soon after the event
     run.rows(t0, q, p)
+    stop = _drive(run, t0, n_steps, contact_mode)
+    completed = (RunStatus.COMPLETED, RunStatus.COMPLETED.cause)
+    traj = run.trajectory(*(stop.outcome if stop is not None else completed))
+
+    def cut_step(q, p, tau, t):
+        return one_step(integrator.run_spec, q, p, tau, t, prm)
+
+    traj = finish(traj, options, run.grid()[: len(traj)], t0, h, cut_step)
+    return run.outcome(traj, stop, on_failure)
+
+
+def _drive(run: _Run, t0: float, n_steps: int, contact_mode: str) -> _Stop | None:
+    """The run from its first row to grid step ``n_steps``; how it stopped (None: completed)."""
     k = 0  # grid index of the current state (or of the step it lies in)
     stepping = contact_mode == "time-stepping"
     try:
@@ -112,13 +138,49 @@ def integrate_with_contacts(
             except _Stop as stop:
                 if stop.status != RunStatus.CONTACT_PERSISTS or contact_mode != "auto":
                     raise
+                if run.h < 0:
+                    raise  # no complementarity steps backwards in time
                 # from the last state kept on: a complementarity problem per step
                 t_last = float(run.last()[0])
-                k = int(np.floor((t_last - t0) / h * (1 + 4 * np.finfo(float).eps)))
+                k = int(np.floor((t_last - t0) / run.h * (1 + 4 * np.finfo(float).eps)))
                 stepping = True
     except _Stop as stop:
-        return run.stopped(stop, on_failure)
-    return run.trajectory(RunStatus.COMPLETED, RunStatus.COMPLETED.cause)
+        return stop
+    except _Terminal:
+        return None  # the events' pass after the run cuts it at the event
+    except KeyboardInterrupt:
+        run.settle()
+        t_last = float(run.last()[0])
+        step = int(round((t_last - t0) / run.h))
+        message = (
+            f"{RunStatus.INTERRUPTED.cause} after step {step} (t = {t_last:.6g}); the states "
+            "computed so far are kept"
+        )
+        return _Stop(RunStatus.INTERRUPTED, message, step, t_last)
+    finally:
+        if run.watch is not None:
+            run.watch.close()
+    return None
+
+
+def _check_backward(system, contact_mode: str) -> None:
+    """A run backwards in time needs the inverse impact law of every contact."""
+    if contact_mode == "time-stepping":
+        raise ValueError(
+            "h < 0: contact_mode='time-stepping' does not run backwards in time (its "
+            "contact forces dissipate); use contact_mode='event' or 'auto'"
+        )
+    reasons = irreversible_contacts(system)
+    if reasons:
+        raise ValueError(
+            "h < 0 (backwards in time) needs the inverse impact law, which "
+            + "; ".join(reasons)
+            + " does not have"
+        )
+
+
+class _Terminal(Exception):
+    """A terminal event has occurred: the run stops after the current piece."""
 
 
 class _Stop(Exception):
@@ -129,6 +191,10 @@ class _Stop(Exception):
         self.status, self.message, self.step, self.t, self.residual = (
             status, message, step, t, residual,
         )  # fmt: skip
+
+    @property
+    def outcome(self) -> tuple[RunStatus, str]:
+        return self.status, self.message
 
 
 class _Run:
@@ -144,6 +210,13 @@ class _Run:
         self._t: list = []
         self._q: list = []
         self._p: list = []
+        self._grid: list = []  # per row: reached at a grid time by a step
+        self._watched = 1  # chunks of rows the watch has seen (the first row: none to see)
+        #: terminal events and progress, looked at after each piece (None: nothing to watch)
+        self.watch: Watch | None = None
+        #: a bound on the smooth pieces' steps (None: none; a terminal event sets one)
+        self.longest_piece: int | None = None
+        self.sign = 1.0 if h > 0 else -1.0
         self.impacts: list[Impact] = []
         self.iterations = 0
         self.forces: list[tuple[float, NDArray, NDArray, int, float]] = []
@@ -161,12 +234,15 @@ class _Run:
         piece = FIRST_PIECE
         while k < n_steps:
             steps = min(piece, n_steps - k)
+            if self.longest_piece is not None:
+                steps = min(steps, self.longest_piece)
             end = self.smooth(q, p, t0 + k * h, h, steps)
             if end.status != RunStatus.TERMINATED:
                 self.rows(t0 + (k + np.arange(1, steps + 1)) * h, end.q[1:], end.p[1:])
                 self.check_penetration(end.q[1:], t0 + (k + 1) * h, k + 1)
                 q, p, k = end.q[-1], end.p[-1], k + steps
                 piece = min(2 * piece, LONGEST_PIECE)
+                self.watched(k)
                 continue
             # an impact in step k + j: the rows of its nodes, then through the step
             j = len(end.t) - 2
@@ -176,6 +252,7 @@ class _Run:
             q, p = self.through_step(start, t0 + (k + j + 1) * h, end, k + j)
             k += j + 1
             piece = max(FIRST_PIECE, 2 * j)
+            self.watched(k)
         return k
 
     def time_steps(self, k: int, t0: float, n_steps: int, until_release: bool):
@@ -202,6 +279,7 @@ class _Run:
             q, p, result, tau = self._through_stepping(t, q, p, t_next, k)
             self.rows(t_next, q, p)
             t, k = t_next, k + 1
+            self.watched(k)
             free = free + 1 if np.all(result.normal * tau <= RELEASED_IMPULSE) else 0
             if until_release and free >= 2:
                 return k, True
@@ -269,7 +347,7 @@ class _Run:
                 self.system, self.functions, j, t_hit, q_hit, p_minus, self.prm
             )
             self.impacts.append(impact)
-            self.rows([t_hit, t_hit], [q_hit, q_hit], [p_minus, p_plus])
+            self.rows([t_hit, t_hit], [q_hit, q_hit], [p_minus, p_plus], grid=False)
             t, q, p = t_hit, q_hit, p_plus
         else:
             raise self._persists(j, t, k, f"more than {MAX_IMPACTS_PER_STEP} impacts in one step")
@@ -345,12 +423,47 @@ class _Run:
         d = self.integrator.method.tables.d
         return d[:, None] * (tau * v)[None, :]
 
-    def rows(self, t, q, p) -> None:
+    def rows(self, t, q, p, grid: bool = True) -> None:
+        """Append rows: states reached at grid times by steps (``grid``), or an impact's."""
         if np.size(t) == 0:
             return
-        self._t.append(np.atleast_1d(np.asarray(t, dtype=float)))
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        self._grid.append(np.full(t.size, grid))
+        self._t.append(t)
         self._q.append(np.atleast_2d(q))
         self._p.append(np.atleast_2d(p))
+
+    def settle(self) -> None:
+        """The rows and impacts made consistent after Ctrl-C, which may fall between appends."""
+        chunks = min(len(self._t), len(self._q), len(self._p), len(self._grid))
+        del self._t[chunks:], self._q[chunks:], self._p[chunks:], self._grid[chunks:]
+        t_last = self._t[-1][-1]
+        self.impacts = [i for i in self.impacts if (i.t - t_last) * self.sign <= 0.0]
+
+    def grid(self) -> NDArray[np.bool_]:
+        """Per row: whether it is a grid row (:func:`.outputs.saved_every`)."""
+        return np.concatenate(self._grid)
+
+    def watched(self, k: int) -> None:
+        """Show the rows added since the last call to the watch (k: the grid step reached).
+
+        Raises
+        ------
+        _Terminal
+            When a terminal event has occurred in them.
+        """
+        if self.watch is None:
+            return
+        if not self.watch.terminal:
+            self.watch.seen((), (), (), k)  # the progress bar only
+            return
+        seen = self._watched - 1  # the last chunk seen: its last row starts the new ones
+        new = slice(seen, len(self._t))
+        t, q, p = (np.concatenate(rows[new]) for rows in (self._t, self._q, self._p))
+        first = len(self._t[seen]) - 1
+        self._watched = len(self._t)
+        if self.watch.seen(t[first:], q[first:], p[first:], k):
+            raise _Terminal
 
     def smooth(self, q, p, t_start: float, h: float, steps: int, events: bool = True):
         """``steps`` Galerkin steps of size h from (q, p); stops at a closing gap."""
@@ -379,7 +492,7 @@ class _Run:
             j = self._which(end)
             # a gap closing at once: another contact touching already (Newton's cradle), hit
             # at the same instant if it approaches, else a contact that persists
-            at_once = t_hit - t_s <= 4 * np.finfo(float).eps * max(1.0, abs(t_hit))
+            at_once = abs(t_hit - t_s) <= 4 * np.finfo(float).eps * max(1.0, abs(t_hit))
             if at_once:
                 q_hit, p_minus = q_s, p_s
             else:
@@ -387,9 +500,7 @@ class _Run:
                     self.integrator.run_spec, q_s, p_s, t_hit - t_s, t_s, self.prm
                 )
             try:
-                p_plus, impact = impulse(
-                    self.system, self.functions, j, t_hit, q_hit, p_minus, self.prm
-                )
+                p_plus, impact = self.jump(j, t_hit, q_hit, p_minus)
             except ValueError:
                 if at_once:
                     raise self._persists(j, t_hit, step, "the gap closes again at once") from None
@@ -397,9 +508,11 @@ class _Run:
                 p_plus, impact = p_minus, None
             if impact is not None:
                 self.impacts.append(impact)
-                self.rows([t_hit, t_hit], [q_hit, q_hit], [p_minus, p_plus])
+                self.rows([t_hit, t_hit], [q_hit, q_hit], [p_minus, p_plus], grid=False)
             t_s, q_s, p_s = t_hit, q_hit, p_plus
-            if t_end - t_s <= 4 * np.finfo(float).eps * max(1.0, abs(t_end)):
+            if (t_end - t_s) * self.sign <= 4 * np.finfo(float).eps * max(1.0, abs(t_end)):
+                if impact is not None:
+                    self._grid[-1][-1] = True  # the state leaving it is the grid time's
                 return q_s, p_s  # the impact fell on the grid time
             end = self.smooth(q_s, p_s, t_s, t_end - t_s, 1, events=impact is not None)
             if end.status != RunStatus.TERMINATED:
@@ -410,6 +523,16 @@ class _Run:
         raise self._persists(
             self._which(end), t_hit, step, f"more than {MAX_IMPACTS_PER_STEP} impacts in one step"
         )
+
+    def jump(self, j: int, t: float, q, p) -> tuple:
+        """(momentum leaving, :class:`.impact.Impact`) of contact j's impact, met with p.
+
+        Forward in time the impact law; backwards its inverse (the run meets the
+        post-impact state first).
+        """
+        if self.sign > 0:
+            return impulse(self.system, self.functions, j, t, q, p, self.prm)
+        return inverse_impulse(self.system, self.functions, j, t, q, p, self.prm)
 
     def check_penetration(self, q, t_first: float, step_first: int) -> None:
         """Stop where a node lies inside a contact that no impact reached."""
@@ -427,9 +550,11 @@ class _Run:
 
     def _drop_after(self, t: float) -> None:
         t_all = np.concatenate(self._t)
-        keep = int(np.searchsorted(t_all, t, side="right"))
+        keep = int(np.searchsorted(t_all * self.sign, t * self.sign, side="right"))
         q_all, p_all = np.concatenate(self._q), np.concatenate(self._p)
         self._t, self._q, self._p = [t_all[:keep]], [q_all[:keep]], [p_all[:keep]]
+        self._grid = [np.concatenate(self._grid)[:keep]]
+        self._watched = min(self._watched, 1)
 
     def _which(self, end) -> int:
         """The contact whose event stopped the smooth run ``end``."""
@@ -479,8 +604,14 @@ class _Run:
             complementarity=np.array(complementarity),
         )
 
-    def stopped(self, stop: _Stop, on_failure: str):
-        traj = self.trajectory(stop.status, stop.message)
+    def outcome(self, traj, stop: _Stop | None, on_failure: str):
+        """The run's result ``traj``: warned or raised as ``stop`` and ``on_failure`` say."""
+        if stop is None or traj.status == RunStatus.TERMINATED:
+            return traj
+        if stop.status == RunStatus.INTERRUPTED:
+            # asked for by the user: returned in either failure mode
+            warnings.warn(stop.message, RunFailureWarning, stacklevel=4)
+            return traj
         if stop.status == RunStatus.CONTACT_PERSISTS:
             # the model's limit here, not a numerical failure: warned, never raised
             warnings.warn(stop.message, RunFailureWarning, stacklevel=4)

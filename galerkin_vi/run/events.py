@@ -254,17 +254,20 @@ def locate_events(
     sol: DenseOutput,
     prm: NDArray,
     exact_step: Callable | None = None,
+    from_start: bool = True,
 ) -> list[EventRecord]:
     """All occurrences of each event along the run of ``sol``.
 
     ``exact_step(k, tau)`` returns the state (q, v) one method step of length
-    ``tau`` after node k; used for the events with ``exact=True``.
+    ``tau`` after node k; used for the events with ``exact=True``. With
+    ``from_start=False`` a zero at the first node is not an event (``sol`` is
+    a later segment of a run, whose first node ends the previous one's search).
     """
     t, q, v = sol.t, sol.q, sol.v
     records = []
     for event, g in zip(events, functions, strict=True):
         values = g(t, q, v, prm)
-        k = _crossings(values, float(event.direction))
+        k = _crossings(values, float(event.direction), from_start)
         if k.size == 0:
             records.append(EventRecord.empty(q.shape[1]))
             continue

@@ -75,7 +75,12 @@ class RunOutputs:
 
 
 def at_times(traj: Trajectory, times: NDArray) -> Trajectory:
-    """``traj`` with rows at ``times`` from its dense output (a run cut short: those reached)."""
+    """``traj`` with rows at ``times`` from its dense output (a run cut short: those reached).
+
+    ``traj.sol`` is anything with ``t_min``, ``t_max``, ``__call__`` and ``momentum``
+    (:class:`~galerkin_vi.run.dense.DenseOutput`,
+    :class:`~galerkin_vi.run.piecewise.PiecewiseDenseOutput`).
+    """
     sol = traj.sol
     reached = times[(times >= sol.t_min) & (times <= sol.t_max)]
     return replace(traj, t=reached, q=sol(reached), p=sol.momentum(reached), q_reduced=None)
