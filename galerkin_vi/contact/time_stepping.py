@@ -171,7 +171,7 @@ class ContactStepper:
         m = self.size
         C = np.vstack([np.zeros((1, n)), x.reshape(s, n)])
         G, H = numpy_backend.discrete_hessian(system, tb, t0, h, qk, C, self.prm)
-        t, Q, V = numpy_backend._points(tb, t0, h, qk, C)
+        t, Q, V = numpy_backend.quadrature_points(tb, t0, h, qk, C)
         b, Phi, D = tb.b, tb.Phi, tb.D
         F = G[:s].copy()
         F[0] += pk

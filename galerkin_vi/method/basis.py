@@ -48,7 +48,7 @@ import mpmath
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .quadrature import _require_int, gauss_lobatto, gauss_lobatto_mp
+from .quadrature import require_int, gauss_lobatto, gauss_lobatto_mp
 
 # 1/_TINY is the largest finite float64, so 1/(x - d) is finite whenever |x - d| >= _TINY.
 _TINY = 1.0 / np.finfo(np.float64).max
@@ -280,7 +280,7 @@ def lobatto_control_nodes(degree: int) -> NDArray[np.float64]:
     >>> lobatto_control_nodes(2)
     array([0. , 0.5, 1. ])
     """
-    return gauss_lobatto(_require_int(degree, "degree", 1) + 1).nodes
+    return gauss_lobatto(require_int(degree, "degree", 1) + 1).nodes
 
 
 def equidistant_control_nodes(degree: int) -> NDArray[np.float64]:
@@ -305,7 +305,7 @@ def equidistant_control_nodes(degree: int) -> NDArray[np.float64]:
     >>> equidistant_control_nodes(4)
     array([0.  , 0.25, 0.5 , 0.75, 1.  ])
     """
-    degree = _require_int(degree, "degree", 1)
+    degree = require_int(degree, "degree", 1)
     return np.arange(degree + 1, dtype=np.float64) / degree
 
 
@@ -325,7 +325,7 @@ def lobatto_control_nodes_mp(degree: int, dps: int = 40) -> list[mpmath.mpf]:
         The very numbers of the Lobatto rule's nodes, so that :func:`lagrange_tables` sees
         exact coincidences with the collocated quadrature.
     """
-    return gauss_lobatto_mp(_require_int(degree, "degree", 1) + 1, dps)[0]
+    return gauss_lobatto_mp(require_int(degree, "degree", 1) + 1, dps)[0]
 
 
 def equidistant_control_nodes_mp(degree: int, dps: int = 40) -> list[mpmath.mpf]:
@@ -342,8 +342,8 @@ def equidistant_control_nodes_mp(degree: int, dps: int = 40) -> list[mpmath.mpf]
     -------
     list of mpmath.mpf, length degree + 1
     """
-    degree = _require_int(degree, "degree", 1)
-    dps = _require_int(dps, "dps", 1)
+    degree = require_int(degree, "degree", 1)
+    dps = require_int(dps, "dps", 1)
     with mpmath.workdps(dps):
         return [mpmath.mpf(nu) / degree for nu in range(degree + 1)]
 
@@ -433,7 +433,7 @@ def lagrange_tables_mp(
 
     Used by the extended-precision order studies.
     """
-    dps = _require_int(dps, "dps", 1)
+    dps = require_int(dps, "dps", 1)
     with mpmath.workdps(dps):
         d = _mp_list(control_nodes_mp, "control nodes")
         c = _mp_list(points_mp, "points")

@@ -67,7 +67,7 @@ _MAX_NEWTON_ITERATIONS = 100
 _Real = TypeVar("_Real", float, mpmath.mpf)
 
 
-def _require_int(value: object, name: str, minimum: int) -> int:
+def require_int(value: object, name: str, minimum: int) -> int:
     """Validate an integer argument and return it as a built-in ``int``.
 
     Parameters
@@ -172,7 +172,7 @@ class QuadratureRule:
             raise ValueError("nodes must be strictly increasing and lie in [0, 1]")
         if np.any(weights <= 0.0) or abs(math.fsum(weights.tolist()) - 1.0) > 1e-12:
             raise ValueError("weights must be positive and sum to 1")
-        degree = _require_int(self.degree, "degree", -1)
+        degree = require_int(self.degree, "degree", -1)
         if degree != degree_of(m):
             raise ValueError(
                 f"a {m}-point {self.family} rule has degree {degree_of(m)}, got {degree}"
@@ -375,8 +375,8 @@ def gauss_legendre_mp(m: int, dps: int = 40) -> tuple[list[mpmath.mpf], list[mpm
     >>> mpmath.nstr(nodes[0], 20)  # (3 - sqrt(3)) / 6
     '0.21132486540518711775'
     """
-    m = _require_int(m, "m", 1)
-    dps = _require_int(dps, "dps", 1)
+    m = require_int(m, "m", 1)
+    dps = require_int(dps, "dps", 1)
     nodes, weights = _gauss_legendre_mp_cached(m, dps)
     return list(nodes), list(weights)
 
@@ -428,8 +428,8 @@ def gauss_lobatto_mp(m: int, dps: int = 40) -> tuple[list[mpmath.mpf], list[mpma
     >>> mpmath.nstr(weights[0], 20)
     '0.16666666666666666667'
     """
-    m = _require_int(m, "m", 2)
-    dps = _require_int(dps, "dps", 1)
+    m = require_int(m, "m", 2)
+    dps = require_int(dps, "dps", 1)
     nodes, weights = _gauss_lobatto_mp_cached(m, dps)
     return list(nodes), list(weights)
 
@@ -488,7 +488,7 @@ def gauss_legendre(m: int) -> QuadratureRule:
     >>> rule, rule.nodes, rule.weights, rule.order
     (gauss_legendre(1), array([0.5]), array([1.]), 2)
     """
-    return _gauss_legendre_cached(_require_int(m, "m", 1))
+    return _gauss_legendre_cached(require_int(m, "m", 1))
 
 
 def gauss_lobatto(m: int) -> QuadratureRule:
@@ -522,4 +522,4 @@ def gauss_lobatto(m: int) -> QuadratureRule:
     >>> rule, rule.nodes, rule.order
     (gauss_lobatto(3), array([0. , 0.5, 1. ]), 4)
     """
-    return _gauss_lobatto_cached(_require_int(m, "m", 2))
+    return _gauss_lobatto_cached(require_int(m, "m", 2))

@@ -138,7 +138,7 @@ def has_stage_form(system) -> bool:
     )
 
 
-def _lagrange_mp(nodes, x) -> list:
+def lagrange_values_mp(nodes, x) -> list:
     """The Lagrange basis on ``nodes`` at ``x`` (product form; one node: the constant 1)."""
     out = []
     for j, xj in enumerate(nodes):
@@ -199,7 +199,7 @@ def _compute(method: Galerkin) -> SeparableTables:
         implicit = [i for i in range(r) if moves[i] and drives[i]]
         known = [i for i in range(r) if not moves[i]]
         rest = [i for i in range(r) if moves[i] and not drives[i]]
-        X = [_lagrange_mp(c, 1 + c[i]) for i in implicit]
+        X = [lagrange_values_mp(c, 1 + c[i]) for i in implicit]
         last_is_end = r - 1 in rest and all(
             abs(Phi1[r - 1, mu] - (mu == s - 1)) <= tiny for mu in range(s)
         )

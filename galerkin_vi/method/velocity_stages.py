@@ -57,7 +57,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .galerkin import Galerkin
-from .stage_form import _lagrange_mp
+from .stage_form import lagrange_values_mp
 
 __all__ = [
     "MIN_FIXED_POINT_DEGREE",
@@ -142,7 +142,7 @@ def _integrated_basis(c, x) -> list:
     for j in range(r):
         total = mpmath.mpf(0)
         for xk, wk in zip(xs, ws, strict=True):
-            total += wk * _lagrange_mp(c, x * xk)[j]
+            total += wk * lagrange_values_mp(c, x * xk)[j]
         out.append(x * total)
     return out
 
@@ -161,7 +161,7 @@ def _compute(method: Galerkin) -> VaryingMassTables:
         A = [_integrated_basis(c, ci) for ci in c]
         b = _integrated_basis(c, mpmath.mpf(1))
         Abar = [[b[j] * (1 - A[j][i] / b[i]) for j in range(r)] for i in range(r)]
-        X = [_lagrange_mp(c, 1 + ci) for ci in c]
+        X = [lagrange_values_mp(c, 1 + ci) for ci in c]
 
     def rounded(rows) -> NDArray[np.float64]:
         return np.array([[float(x) for x in row] for row in rows], dtype=float)

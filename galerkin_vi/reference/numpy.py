@@ -18,6 +18,7 @@ __all__ = [
     "discrete_gradient",
     "discrete_hessian",
     "compensated_sum",
+    "quadrature_points",
     "integrate",
     "momentum_increment",
     "solve_step",
@@ -27,7 +28,11 @@ __all__ = [
 ]
 
 
-def _points(tables: MethodTables, t0: float, h: float, qk: NDArray, C: NDArray):
+def quadrature_points(tables: MethodTables, t0: float, h: float, qk: NDArray, C: NDArray):
+    """Times, positions and velocities of the step's polynomial at the quadrature points.
+
+    ``C`` are the control points as increments from ``qk`` (row 0 unused).
+    """
     # increments C from the base point qk keep V free of eps*|q|/h rounding (see loops.general)
     t = t0 + tables.c * h
     Q = qk + tables.Phi[:, 1:] @ C[1:]
@@ -53,7 +58,7 @@ def discrete_gradient(
     ``C`` holds the control points as increments from ``qk`` (``C[0] = 0``).
     """
     n = system.n
-    t, Q, V = _points(tables, t0, h, qk, C)
+    t, Q, V = quadrature_points(tables, t0, h, qk, C)
     values = system.evaluate("gradient", t, Q, V, prm)
     Lq, Lv = values[:, :n], values[:, n:]
     b = tables.b[:, None]
@@ -74,7 +79,7 @@ def momentum_increment(
     The compiled loops add it to :math:`p_k` with compensated summation (see
     ``loops.general.momentum_increment``); so does :func:`integrate`.
     """
-    t, Q, V = _points(tables, t0, h, qk, C)
+    t, Q, V = quadrature_points(tables, t0, h, qk, C)
     Lq = system.evaluate("gradient", t, Q, V, prm)[:, : system.n]
     return h * (tables.b @ Lq)
 
@@ -93,7 +98,7 @@ def discrete_hessian(
     Returns ``G`` of shape (s + 1, n) and ``H`` of shape (s + 1, n, s + 1, n).
     """
     n = system.n
-    t, Q, V = _points(tables, t0, h, qk, C)
+    t, Q, V = quadrature_points(tables, t0, h, qk, C)
     values = system.evaluate("hessian", t, Q, V, prm)
     Lq, Lv = values[:, :n], values[:, n : 2 * n]
     # Lq and Lqq include the forces (L_q + f, L_qq + f_q); f_v follows when nonzero
