@@ -386,3 +386,15 @@ def test_a_failed_step_keeps_the_rows_before_with_their_dense_output_and_events(
         integrator.integrate(*START, **options, on_failure="raise")
     np.testing.assert_array_equal(raised.value.partial.t, traj.t)
     assert raised.value.partial.sol is not None
+
+
+def test_trajectory_dense_of_a_run_with_impacts_is_piecewise():
+    # Trajectory.dense() on a run with impacts equals the run's own dense output:
+    # one interpolant per smooth segment, never across an impact
+    integrator = gvi.Integrator(_ball(0.8), gvi.Galerkin(3))
+    traj = integrator.integrate(*START, h=1e-2, n_steps=300, dense_output=True)
+    assert traj.impacts
+    again = traj.dense()
+    times = np.linspace(traj.t[0], traj.t[-1], 777)
+    np.testing.assert_array_equal(again(times), traj.sol(times))
+    np.testing.assert_array_equal(again.velocity(times), traj.sol.velocity(times))

@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 
 from ..model.system import LagrangianSystem
 from .dense import DenseOutput, stencil_nodes
+from .piecewise import PiecewiseDenseOutput
 from .status import RunStatus
 
 __all__ = ["Trajectory"]
@@ -80,7 +81,7 @@ class Trajectory:
     status: RunStatus = RunStatus.COMPLETED
     message: str = "the run reached its last step"
     order: int | None = None
-    sol: DenseOutput | None = None
+    sol: DenseOutput | PiecewiseDenseOutput | None = None
     t_events: list[NDArray[np.float64]] | None = None
     q_events: list[NDArray[np.float64]] | None = None
     v_events: list[NDArray[np.float64]] | None = None
@@ -126,7 +127,7 @@ class Trajectory:
         """
         return self.system.inverse_legendre(self._reduced_q(), self.p, self.t, self._param_dict())
 
-    def dense(self, stencil: int | None = None) -> DenseOutput:
+    def dense(self, stencil: int | None = None) -> DenseOutput | PiecewiseDenseOutput:
         """Dense output of the run from its saved states (:mod:`galerkin_vi.run.dense`).
 
         Parameters
@@ -136,6 +137,12 @@ class Trajectory:
             of the method's order (``order``; 2 when unknown). Every step saved
             (``save_every=1``) gives the method's order; sparser saves
             interpolate over their spacing.
+
+        Returns
+        -------
+        DenseOutput or PiecewiseDenseOutput
+            Piecewise between impacts for a run with impacts (the velocity
+            jumps there; :mod:`galerkin_vi.run.piecewise`), right-continuous.
         """
         if len(self) < 2:
             raise ValueError(f"dense output needs at least 2 saved states, got {len(self)}")
@@ -143,6 +150,11 @@ class Trajectory:
             stencil = stencil_nodes(self.order or 2)
         if isinstance(stencil, bool) or not isinstance(stencil, int) or stencil < 2:
             raise ValueError(f"stencil must be an int >= 2, got {stencil!r}")
+        if self.impacts:
+            # the velocity jumps at an impact: one interpolant per smooth segment
+            return PiecewiseDenseOutput.from_rows(
+                self.t, self.q, self.velocities(), stencil, self.system, self.params
+            )
         return DenseOutput(
             t=self.t, q=self.q, v=self.velocities(), stencil=stencil, system=self.system,
             params=self.params,
