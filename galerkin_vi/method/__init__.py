@@ -1,1 +1,2 @@
-"""method"""
+"""The method: Galerkin discretisations and their numeric tables (quadrature rules,
+interpolation bases, stage-form and velocity-stage tables)."""
