@@ -9,6 +9,7 @@ from dataclasses import replace
 from numpy.typing import ArrayLike
 
 from ..errors import ConvergenceError
+from .chunks import carry_turns
 from .failures import check_failure_mode, failed_run
 from .outputs import without_first_row
 from .trajectory import Trajectory
@@ -48,12 +49,12 @@ def stream_chunks(
     back. A failure is reported in the step count of the whole run.
     """
     done = 0
-    offset = None  # whole turns of the angles, added back to later chunks' q
+    previous = None  # the last chunk yielded (its angles' whole turns carry to the next)
     start = {"v0": v0, "p0": p0}
     q_start: ArrayLike = q0
     t_start = float(t0)
-    first = True
-    while first or done < n_steps:
+    while previous is None or done < n_steps:
+        first = previous is None
         steps = min(chunk_steps, n_steps - done)
         try:
             chunk = integrate(
@@ -62,9 +63,7 @@ def stream_chunks(
             )  # fmt: skip
         except ConvergenceError as exc:
             exc.step += done
-            partial = exc.partial
-            if offset is not None:
-                partial = replace(partial, q=partial.q + offset)
+            partial = exc.partial if first else carry_turns(previous, exc.partial)
             partial = partial if first else without_first_row(partial)
             message = f"{partial.message} (step {exc.step} of the whole run)"
             exc.partial = replace(partial, message=message)
@@ -72,15 +71,10 @@ def stream_chunks(
                 raise
             yield failed_run(exc.partial, on_failure, step=exc.step, t=exc.t, residual=exc.residual)
             return
-        if offset is not None:
-            chunk = replace(chunk, q=chunk.q + offset)
+        chunk = chunk if first else carry_turns(previous, chunk)
         yield chunk if first else without_first_row(chunk)
         done += steps
-        first = False
-        if chunk.q_reduced is not None:
-            q_start = chunk.q_reduced[-1]
-            offset = chunk.q[-1] - chunk.q_reduced[-1]
-        else:
-            q_start = chunk.q[-1]
+        previous = chunk
+        q_start = chunk.q_reduced[-1] if chunk.q_reduced is not None else chunk.q[-1]
         start = {"v0": None, "p0": chunk.p[-1]}
         t_start = float(t0) + done * h  # not chunk.t[-1]: no rounding accumulates
