@@ -426,17 +426,17 @@ def _compiled_points(system: LagrangianSystem, method: Galerkin):
     """
     if system.m:
         return None
-    cache = system.__dict__.setdefault("_action_points", {})
-    if method not in cache:
-        from ..integrator import Integrator
+    return system.derived.get(("action", "points", method), lambda: _load_points(system, method))
 
-        integrator = Integrator(system, method)
-        if integrator.backend != "numba" or integrator.uses_banded_storage:
-            cache[method] = None
-        else:
-            names = ("point_gradient", "point_hessian", "lagrangian")
-            cache[method] = integrator.compiled_point_functions(names)
-    return cache[method]
+
+def _load_points(system: LagrangianSystem, method: Galerkin):
+    """(fn, traits) of the Newton iteration's point functions, or None without numba."""
+    from ..integrator import Integrator
+
+    integrator = Integrator(system, method)
+    if integrator.backend != "numba" or integrator.uses_banded_storage:
+        return None
+    return integrator.compiled_point_functions(("point_gradient", "point_hessian", "lagrangian"))
 
 
 def _compiled_solve(problem: _Stationarity, compiled, path: _Path, tol, maxiter):

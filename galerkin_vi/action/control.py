@@ -304,14 +304,15 @@ class _Problem:
 def _control_pieces(system: LagrangianSystem, controls: tuple, cost: sp.Expr) -> tuple:
     """The evaluators of a control problem: the point Hessian of phi, df/du, C and its gradient.
 
-    Derived and lambdified once per (controls, cost) and kept on the system (a
-    SymPy Hessian with CSE: a tenth of a second for the cart-pole, every solve
-    before), dropped when the system is pickled.
+    Derived and lambdified once per (controls, cost) and kept in ``system.derived``
+    (a SymPy Hessian with CSE: a tenth of a second for the cart-pole).
     """
-    cache = system.__dict__.setdefault("_control_pieces", {})
-    key = (controls, cost)
-    if key in cache:
-        return cache[key]
+    return system.derived.get(
+        ("control", controls, cost), lambda: _build_control_pieces(system, controls, cost)
+    )
+
+
+def _build_control_pieces(system: LagrangianSystem, controls: tuple, cost: sp.Expr) -> tuple:
     n = system.n
     p = system.pieces
     mu_q = sp.symbols(f"_mu_q0:{n}")
@@ -325,13 +326,12 @@ def _control_pieces(system: LagrangianSystem, controls: tuple, cost: sp.Expr) ->
         + sum(mv * e for mv, e in zip(mu_v, p.Lv, strict=True))
     )
     args = system.arguments
-    cache[key] = (
+    return (
         FlatEvaluator(list(sp.hessian(phi, w)), (*args, *mu_q, *mu_v, weight)),
         FlatEvaluator([sp.diff(e, u) for e in force for u in controls], args),
         FlatEvaluator([cost], args),
         FlatEvaluator([sp.diff(cost, y) for y in w], args),
     )
-    return cache[key]
 
 
 def solve_optimal_control(

@@ -88,9 +88,7 @@ def integrate_with_contacts(
     h, n_steps, t0, _ = integrator._run_plan(h, n_steps, t_span, t0, 1)
     prm = system.parameter_vector(params)
     # lambdified once per system (milliseconds each): kept with it, like event functions
-    functions = system.__dict__.get("_contact_functions")
-    if functions is None:
-        functions = system.__dict__["_contact_functions"] = ContactFunctions(system)
+    functions = system.derived.get(("contact", "functions"), lambda: ContactFunctions(system))
     q = integrator._state("q0", q0)
     _check_initial_gaps(system, functions, t0, q, prm)
     q, p, _ = integrator._initial_state(q, v0, p0, t0, prm, False)
@@ -184,11 +182,11 @@ class _Run:
         from .time_stepping import ContactStepper
 
         if self._stepper is None:
-            tables = self.integrator.method.tables
-            steppers = self.system.__dict__.setdefault("_contact_steppers", {})
-            if id(tables) not in steppers:
-                steppers[id(tables)] = (tables, ContactStepper(self.functions, tables, self.prm))
-            self._stepper = steppers[id(tables)][1]
+            method = self.integrator.method
+            self._stepper = self.system.derived.get(
+                ("contact", "stepper", method),
+                lambda: ContactStepper(self.functions, method.tables, self.prm),
+            )
             self._stepper.prm = self.prm  # the run's parameters
             self._duals = np.ones(self._stepper.size)
         h = self.h
