@@ -182,12 +182,10 @@ class _Run:
         from .time_stepping import ContactStepper
 
         if self._stepper is None:
-            method = self.integrator.method
-            self._stepper = self.system.derived.get(
-                ("contact", "stepper", method),
-                lambda: ContactStepper(self.functions, method.tables, self.prm),
-            )
-            self._stepper.prm = self.prm  # the run's parameters
+            # one per run, not kept with the system: it holds the run's parameters and
+            # gap offsets, and ensemble members run in threads at once
+            tables = self.integrator.method.tables
+            self._stepper = ContactStepper(self.functions, tables, self.prm)
             self._duals = np.ones(self._stepper.size)
         h = self.h
         t, q, p = self.last()
