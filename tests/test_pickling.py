@@ -110,8 +110,12 @@ CASES = {
     "solve_periodic": Case(_pendulum, _periodic, "points", **ONE_DOF),
     "solve_optimal_control": Case(_controlled, _control, "control", **ONE_DOF),
     "adaptive": Case(
-        _kepler_xy, _adaptive, "evaluators",
-        q0s=((0.5, 0.0), (0.6, 0.0)), v0s=((0.0, 1.7), (0.0, 1.5)), h=0.002,
+        _kepler_xy,
+        _adaptive,
+        "evaluators",
+        q0s=((0.5, 0.0), (0.6, 0.0)),
+        v0s=((0.0, 1.7), (0.0, 1.5)),
+        h=0.002,
     ),  # fmt: skip
 }
 
