@@ -27,7 +27,7 @@ from .method.quadrature import QuadratureRule, gauss_legendre, gauss_lobatto
 from .model.contacts import Contact
 from .model.system import LagrangianSystem
 from .run.events import Event
-from .run.status import RunStatus
+from .run.status import RunStatus, SolverResult, SolverStatus
 from .run.trajectory import Trajectory
 from .tools.choice import MethodChoice, choose_method
 from .tools.verification import OrderResult, measure_order
@@ -55,6 +55,8 @@ __all__ = [
     "QuadratureRule",
     "RunFailureWarning",
     "RunStatus",
+    "SolverResult",
+    "SolverStatus",
     "Trajectory",
     "choose_method",
     "encounter_scaling",

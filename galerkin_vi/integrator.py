@@ -157,11 +157,14 @@ class Integrator:
         self.system.remember("point_summary", (numba_version(), summary))
         return summary
 
-    @cached_property
+    @property
     def _points(self):
         from .codegen.compiled import load_point_functions
 
-        return load_point_functions(lambda: self._spec, self._summary.key)
+        key = self._summary.key
+        return self.system.derived.get(
+            ("points", key), lambda: load_point_functions(lambda: self._spec, key)
+        )
 
     @property
     def source(self) -> str:

@@ -515,6 +515,7 @@ def test_truncated_numba_index_and_data_files_are_rebuilt(tmp_path, monkeypatch)
         finally:  # the module's file lives in tmp_path: the next run imports it again
             sys.modules.pop(integrator._points.module.__name__, None)
             compiled._LOADED.pop(integrator._points.key, None)
+            system.derived.clear()  # where the system keeps its loaded point functions
 
     reference = run()
     folder = next(tmp_path.rglob("__pycache__"))

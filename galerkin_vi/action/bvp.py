@@ -22,7 +22,6 @@ from __future__ import annotations
 import numbers
 from collections.abc import Callable
 from dataclasses import dataclass
-from enum import IntEnum
 
 import numpy as np
 import sympy as sp
@@ -34,7 +33,7 @@ from ..model.constraints import project_momentum
 from ..model.system import LagrangianSystem
 from ..numeric import FlatEvaluator
 from ..run.dense import DenseOutput, stencil_nodes
-from ..run.status import RunStatus
+from ..run.status import RunStatus, SolverResult, SolverStatus
 from ..run.trajectory import Trajectory
 from .condensation import condense, solve_node_chain
 from .elements import ElementPoints, element_actions, element_gradients, element_jacobians
@@ -43,17 +42,27 @@ from .multipliers import augment
 __all__ = ["ActionStatus", "BoundaryValueResult", "solve_bvp"]
 
 
-class ActionStatus(IntEnum):
-    """How a solve of the discrete action's stationarity ended (``success``: 0)."""
+class ActionStatus(SolverStatus):
+    """How a solve of the discrete action's stationarity (or an optimal control) ended.
+
+    As every :class:`~galerkin_vi.run.status.SolverStatus`: 0 success, negative
+    a failure, ``success == (status >= 0)``.
+    """
 
     CONVERGED = 0
-    MAX_ITERATIONS = 1
-    SINGULAR_JACOBIAN = 2
-    NON_FINITE = 3
-    NO_DESCENT = 4
+    MAX_ITERATIONS = -1
+    SINGULAR_JACOBIAN = -2
+    NON_FINITE = -3
+    NO_DESCENT = -4
+    INFEASIBLE = -5
+
+    @property
+    def cause(self) -> str:
+        """The cause in words, for messages."""
+        return _CAUSES[self]
 
 
-_MESSAGES = {
+_CAUSES = {
     ActionStatus.CONVERGED: "the Newton iteration converged",
     ActionStatus.MAX_ITERATIONS: "the Newton iteration reached maxiter without converging",
     ActionStatus.SINGULAR_JACOBIAN: "the Jacobian of the stationarity equations is singular "
@@ -61,11 +70,22 @@ _MESSAGES = {
     ActionStatus.NON_FINITE: "non-finite values (NaN or inf) appeared",
     ActionStatus.NO_DESCENT: "no step along Newton's direction reduced the residual "
     "(a guess too far from a solution)",
+    ActionStatus.INFEASIBLE: "the optimizer stopped without meeting the discrete equations "
+    "and the boundary conditions",
+}
+
+# the compiled Newton iteration (loops/action.py) returns these codes
+_LOOP_CODES = {
+    0: ActionStatus.CONVERGED,
+    1: ActionStatus.MAX_ITERATIONS,
+    2: ActionStatus.SINGULAR_JACOBIAN,
+    3: ActionStatus.NON_FINITE,
+    4: ActionStatus.NO_DESCENT,
 }
 
 
 @dataclass(frozen=True)
-class BoundaryValueResult:
+class BoundaryValueResult(SolverResult):
     r"""The result of :func:`solve_bvp` (fields as scipy's results name them).
 
     Attributes
@@ -99,10 +119,6 @@ class BoundaryValueResult:
     iterations: int
     residual: float
     method: Galerkin
-
-    @property
-    def success(self) -> bool:
-        return self.status == ActionStatus.CONVERGED
 
     def positions(self, t: ArrayLike) -> NDArray[np.float64]:
         """The path :math:`q(t)` between the nodes: each element's polynomial, shape (m, n).
@@ -426,17 +442,17 @@ def _compiled_points(system: LagrangianSystem, method: Galerkin):
     """
     if system.m:
         return None
-    cache = system.__dict__.setdefault("_action_points", {})
-    if method not in cache:
-        from ..integrator import Integrator
+    return system.derived.get(("action", "points", method), lambda: _load_points(system, method))
 
-        integrator = Integrator(system, method)
-        if integrator.backend != "numba" or integrator.uses_banded_storage:
-            cache[method] = None
-        else:
-            names = ("point_gradient", "point_hessian", "lagrangian")
-            cache[method] = integrator.compiled_point_functions(names)
-    return cache[method]
+
+def _load_points(system: LagrangianSystem, method: Galerkin):
+    """(fn, traits) of the Newton iteration's point functions, or None without numba."""
+    from ..integrator import Integrator
+
+    integrator = Integrator(system, method)
+    if integrator.backend != "numba" or integrator.uses_banded_storage:
+        return None
+    return integrator.compiled_point_functions(("point_gradient", "point_hessian", "lagrangian"))
 
 
 def _compiled_solve(problem: _Stationarity, compiled, path: _Path, tol, maxiter):
@@ -456,7 +472,7 @@ def _compiled_solve(problem: _Stationarity, compiled, path: _Path, tol, maxiter)
     s = X.shape[1] - 1
     nodes = np.concatenate([X[:, 0], X[-1:, s]])
     solved = _Path(nodes, X[:, 1:s].copy(), path.lam)
-    return _result(problem, solved, ActionStatus(int(code)), int(info[0]),
+    return _result(problem, solved, _LOOP_CODES[int(code)], int(info[0]),
                    computed=(P, float(info[3]), float(info[2])), velocities=W)  # fmt: skip
 
 
@@ -507,7 +523,7 @@ def _result(
         total_newton_iterations=iterations,
         n_steps=t.size - 1,
         status=RunStatus.COMPLETED if success else RunStatus.NO_CONVERGENCE,
-        message=_MESSAGES[status],
+        message=status.cause,
         order=problem.order,
         sol=sol,
     )
@@ -518,7 +534,7 @@ def _result(
         multipliers=path.lam if system.m else None,
         action=action,
         status=status,
-        message=_MESSAGES[status],
+        message=status.cause,
         iterations=iterations,
         residual=residual,
         method=problem.method,

@@ -44,15 +44,19 @@ from numpy.typing import ArrayLike, NDArray
 from ..method.galerkin import Galerkin
 from ..model.system import LagrangianSystem
 from ..numeric import FlatEvaluator
-from ..run.status import RunStatus
+from ..run.status import RunStatus, SolverResult
 from ..run.trajectory import Trajectory
+from .bvp import ActionStatus
 from .elements import ElementPoints, element_gradients, element_jacobians
 
 __all__ = ["OptimalControl", "solve_optimal_control"]
 
+#: largest violation of the discrete equations and boundary conditions of a success
+_FEASIBLE = 1e-8
+
 
 @dataclass(frozen=True)
-class OptimalControl:
+class OptimalControl(SolverResult):
     r"""The result of :func:`solve_optimal_control`.
 
     Attributes
@@ -68,8 +72,12 @@ class OptimalControl:
         The multipliers of the discrete equations at the nodes (the discrete
         costate, up to sign: :math:`\lambda_k \approx -\text{costate}(t_k)`),
         including those of prescribed end momenta.
-    success : bool
+    status : ActionStatus
+        ``CONVERGED``; ``MAX_ITERATIONS`` when the optimizer reached ``maxiter``;
+        ``INFEASIBLE`` when it stopped otherwise or left a constraint violation
+        of 1e-8 or more. ``success`` is ``status >= 0``.
     message : str
+        The optimizer's message, after the cause for a failure.
     iterations : int
     constraint_violation : float
     """
@@ -80,7 +88,7 @@ class OptimalControl:
     control_times: NDArray[np.float64]
     cost: float
     multipliers: NDArray[np.float64]
-    success: bool
+    status: ActionStatus
     message: str
     iterations: int
     constraint_violation: float
@@ -304,14 +312,15 @@ class _Problem:
 def _control_pieces(system: LagrangianSystem, controls: tuple, cost: sp.Expr) -> tuple:
     """The evaluators of a control problem: the point Hessian of phi, df/du, C and its gradient.
 
-    Derived and lambdified once per (controls, cost) and kept on the system (a
-    SymPy Hessian with CSE: a tenth of a second for the cart-pole, every solve
-    before), dropped when the system is pickled.
+    Derived and lambdified once per (controls, cost) and kept in ``system.derived``
+    (a SymPy Hessian with CSE: a tenth of a second for the cart-pole).
     """
-    cache = system.__dict__.setdefault("_control_pieces", {})
-    key = (controls, cost)
-    if key in cache:
-        return cache[key]
+    return system.derived.get(
+        ("control", controls, cost), lambda: _build_control_pieces(system, controls, cost)
+    )
+
+
+def _build_control_pieces(system: LagrangianSystem, controls: tuple, cost: sp.Expr) -> tuple:
     n = system.n
     p = system.pieces
     mu_q = sp.symbols(f"_mu_q0:{n}")
@@ -325,13 +334,12 @@ def _control_pieces(system: LagrangianSystem, controls: tuple, cost: sp.Expr) ->
         + sum(mv * e for mv, e in zip(mu_v, p.Lv, strict=True))
     )
     args = system.arguments
-    cache[key] = (
+    return (
         FlatEvaluator(list(sp.hessian(phi, w)), (*args, *mu_q, *mu_v, weight)),
         FlatEvaluator([sp.diff(e, u) for e in force for u in controls], args),
         FlatEvaluator([cost], args),
         FlatEvaluator([sp.diff(cost, y) for y in w], args),
     )
-    return cache[key]
 
 
 def solve_optimal_control(
@@ -391,7 +399,7 @@ def solve_optimal_control(
     Returns
     -------
     OptimalControl
-        Never raises for a solve that does not converge (``success``, ``message``).
+        Never raises for a solve that does not converge (``status``, ``message``).
     """
     import scipy.optimize
 
@@ -552,9 +560,28 @@ def _ipopt(problem: _Problem, controls, cost, x0, control_bounds, state_bounds, 
     stats = nlp.stats()
     return SimpleNamespace(
         x=np.asarray(out["x"]).ravel(), v=[np.asarray(out["lam_g"]).ravel()],
-        status=1 if stats["success"] else 0, nit=stats.get("iter_count", 0),
+        status=_ipopt_status(stats), nit=stats.get("iter_count", 0),
         message=stats["return_status"],
     )  # fmt: skip
+
+
+def _ipopt_status(stats: dict) -> int:
+    """IPOPT's outcome as a ``trust-constr`` status: 1 solved, 0 maxiter, -1 otherwise."""
+    if stats["success"]:
+        return 1
+    return 0 if stats["return_status"] == "Maximum_Iterations_Exceeded" else -1
+
+
+def _control_status(solver_status: int, violation: float) -> ActionStatus:
+    """The status of a solve from the optimizer's (``trust-constr``'s codes) and the violation.
+
+    ``trust-constr``: 1 and 2 its tolerances met, 0 ``maxiter`` reached.
+    """
+    if solver_status in (1, 2) and violation < _FEASIBLE:
+        return ActionStatus.CONVERGED
+    if solver_status == 0:
+        return ActionStatus.MAX_ITERATIONS
+    return ActionStatus.INFEASIBLE
 
 
 def _box(name: str, bounds, first: int, count: int, width: int, size: int):
@@ -588,18 +615,22 @@ def _result(problem: _Problem, solution) -> OptimalControl:
     signs = np.concatenate([sign[:, 0], sign[-1:, -1]])
     node_multipliers = np.where(ends >= 0, signs * lam[np.maximum(ends, 0)], 0.0)
     violation = float(np.abs(problem.constraints(solution.x)).max(initial=0.0))
-    success = bool(solution.status in (1, 2)) and violation < 1e-8
+    status = _control_status(int(solution.status), violation)
+    success = status == ActionStatus.CONVERGED
+    message = str(solution.message)
+    if not success:
+        message = f"{status.cause} ({message}; constraint violation {violation:.1e})"
     trajectory = Trajectory(
         t=problem.t_nodes.copy(), q=nodes, p=p, newton_iterations=np.zeros(0, dtype=np.uint8),
         max_residual=violation, system=problem.system, params=problem.prm,
         total_newton_iterations=int(solution.nit), n_steps=problem.N,
         status=RunStatus.COMPLETED if success else RunStatus.NO_CONVERGENCE,
-        message=str(solution.message), order=problem.method.order,
+        message=message, order=problem.method.order,
     )  # fmt: skip
     control_times = problem.t_nodes[:-1, None] + problem.tables.c[None, :] * problem.h
     return OptimalControl(
         trajectory=trajectory, control_points=X, controls=U, control_times=control_times,
-        cost=problem.cost(solution.x), multipliers=node_multipliers, success=success,
-        message=str(solution.message), iterations=int(solution.nit),
+        cost=problem.cost(solution.x), multipliers=node_multipliers, status=status,
+        message=message, iterations=int(solution.nit),
         constraint_violation=violation,
     )  # fmt: skip

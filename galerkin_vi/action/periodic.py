@@ -53,16 +53,16 @@ from ..method.basis import LagrangeBasis
 from ..method.galerkin import Galerkin
 from ..model.system import LagrangianSystem
 from ..numeric import FlatEvaluator
-from ..run.status import RunStatus
+from ..run.status import RunStatus, SolverResult
 from ..run.trajectory import Trajectory
-from .bvp import _MESSAGES, ActionStatus
+from .bvp import ActionStatus
 from .elements import ElementPoints, element_actions, element_gradients, element_jacobians
 
 __all__ = ["PeriodicOrbit", "follow_family", "solve_periodic"]
 
 
 @dataclass(frozen=True)
-class PeriodicOrbit:
+class PeriodicOrbit(SolverResult):
     r"""The result of :func:`solve_periodic`.
 
     Attributes
@@ -96,10 +96,6 @@ class PeriodicOrbit:
     residual: float
     multipliers: NDArray[np.float64]
     method: Galerkin
-
-    @property
-    def success(self) -> bool:
-        return self.status == ActionStatus.CONVERGED
 
 
 class _Cycle:
@@ -422,11 +418,11 @@ def _orbit(cycle: _Cycle, z, T, status, iterations, mu, energy) -> PeriodicOrbit
         t=t, q=nodes, p=p, newton_iterations=np.zeros(0, dtype=np.uint8),
         max_residual=residual, system=system, params=prm, total_newton_iterations=iterations,
         n_steps=cycle.N, status=RunStatus.COMPLETED if success else RunStatus.NO_CONVERGENCE,
-        message=_MESSAGES[status], order=cycle.method.order,
+        message=status.cause, order=cycle.method.order,
     )  # fmt: skip
     return PeriodicOrbit(
         period=T, trajectory=trajectory, control_points=X, action=action, status=status,
-        message=_MESSAGES[status], iterations=iterations, residual=residual, multipliers=mu,
+        message=status.cause, iterations=iterations, residual=residual, multipliers=mu,
         method=cycle.method,
     )  # fmt: skip
 

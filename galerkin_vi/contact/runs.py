@@ -98,9 +98,7 @@ def integrate_with_contacts(
     )
     prm = system.parameter_vector(params)
     # lambdified once per system (milliseconds each): kept with it, like event functions
-    functions = system.__dict__.get("_contact_functions")
-    if functions is None:
-        functions = system.__dict__["_contact_functions"] = ContactFunctions(system)
+    functions = system.derived.get(("contact", "functions"), lambda: ContactFunctions(system))
     q = state_vector("q0", q0, system.n)
     _check_initial_gaps(system, functions, t0, q, prm)
     q, p, _ = initial_state(integrator.run_spec, q, v0, p0, t0, prm, project)
@@ -264,12 +262,10 @@ class _Run:
         from .time_stepping import ContactStepper
 
         if self._stepper is None:
+            # one per run, not kept with the system: it holds the run's parameters and
+            # gap offsets, and ensemble members run in threads at once
             tables = self.integrator.method.tables
-            steppers = self.system.__dict__.setdefault("_contact_steppers", {})
-            if id(tables) not in steppers:
-                steppers[id(tables)] = (tables, ContactStepper(self.functions, tables, self.prm))
-            self._stepper = steppers[id(tables)][1]
-            self._stepper.prm = self.prm  # the run's parameters
+            self._stepper = ContactStepper(self.functions, tables, self.prm)
             self._duals = np.ones(self._stepper.size)
         h = self.h
         t, q, p = self.last()

@@ -48,7 +48,7 @@ import mpmath
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .quadrature import require_int, gauss_lobatto, gauss_lobatto_mp
+from .quadrature import gauss_lobatto, gauss_lobatto_mp, require_int
 
 # 1/_TINY is the largest finite float64, so 1/(x - d) is finite whenever |x - d| >= _TINY.
 _TINY = 1.0 / np.finfo(np.float64).max

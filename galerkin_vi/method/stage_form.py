@@ -47,6 +47,7 @@ All tables are computed at 40 digits from the exact method tables and rounded on
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import mpmath
 import numpy as np
@@ -155,12 +156,14 @@ def _matrix(rows) -> mpmath.matrix:
 
 
 def separable_tables(method: Galerkin) -> SeparableTables:
-    """The stage-form tables of ``method`` (cached on the method)."""
-    cached = method.__dict__.get("_separable_tables")
-    if cached is None:
-        cached = _compute(method)
-        method.__dict__["_separable_tables"] = cached
-    return cached
+    """The stage-form tables of ``method`` (computed once per method value)."""
+    return _tables(method)
+
+
+@lru_cache(maxsize=64)
+def _tables(method: Galerkin) -> SeparableTables:
+    # per method value, shared by equal methods like Galerkin.tables (plain arrays)
+    return _compute(method)
 
 
 def _compute(method: Galerkin) -> SeparableTables:

@@ -51,6 +51,7 @@ References
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import mpmath
 import numpy as np
@@ -113,7 +114,7 @@ MIN_FIXED_POINT_DEGREE = 3
 
 
 def varying_mass_tables(method: Galerkin) -> VaryingMassTables:
-    """The velocity-stage tables of ``method`` (cached on the method).
+    """The velocity-stage tables of ``method`` (computed once per method value).
 
     Raises
     ------
@@ -125,11 +126,13 @@ def varying_mass_tables(method: Galerkin) -> VaryingMassTables:
             f"{method!r} has no velocity-stage form: it needs Gauss quadrature with as "
             "many points as the degree"
         )
-    cached = method.__dict__.get("_varying_mass_tables")
-    if cached is None:
-        cached = _compute(method)
-        method.__dict__["_varying_mass_tables"] = cached
-    return cached
+    return _tables(method)
+
+
+@lru_cache(maxsize=64)
+def _tables(method: Galerkin) -> VaryingMassTables:
+    # per method value, shared by equal methods like Galerkin.tables (plain arrays)
+    return _compute(method)
 
 
 def _integrated_basis(c, x) -> list:

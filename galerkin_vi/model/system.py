@@ -16,6 +16,7 @@ from ..errors import DegenerateLagrangianError
 from ..numeric import FlatEvaluator
 from .analysis_cache import analysis_key, load_analysis, store_analysis
 from .contacts import Contact, check_contacts
+from .derived import DerivedData
 from .mechanics import (
     MechanicsSymbols,
     PlainModel,
@@ -156,6 +157,10 @@ class LagrangianSystem:
         forces: Sequence[sp.Expr] | None = None,
         contacts: Sequence[Contact] | None = None,
     ) -> None:
+        #: data derived from the model on first use (lambdified and compiled functions,
+        #: solver pieces), kept here for later runs; it never pickles
+        #: (:class:`~galerkin_vi.model.derived.DerivedData`)
+        self.derived = DerivedData()
         #: the map from a mechanics model's dynamicsymbols to the plain symbols here
         self.mechanics_symbols: MechanicsSymbols | None = None
         if uses_dynamicsymbols(q):
@@ -245,7 +250,7 @@ class LagrangianSystem:
             self.pieces = analysis["pieces"]
             self.structure = analysis["structure"]
             self.periodic = analysis["periodic"]
-            self.__dict__["constraint_pieces"] = analysis["constraint_pieces"]
+            self.constraint_pieces = analysis["constraint_pieces"]
             return
         self._analyse(L, q_list, v_list, t, force_list, constraint_list)
         self._analysis = {
@@ -412,55 +417,37 @@ class LagrangianSystem:
         index.update({str(s): i for i, s in enumerate(self.params)})
         return index
 
-    def __getstate__(self) -> dict:
-        # the NumPy evaluators hold lambdified functions, which do not pickle: a copy
-        # sent to another process (an ensemble's worker) builds them again on first use
-        state = self.__dict__.copy()
-        state.pop("_evaluators", None)
-        for cached in (
-            "_event_functions",
-            "_contact_functions",
-            "_contact_steppers",
-            "_action_points",
-        ):
-            state.pop(cached, None)
-        return state
-
     # ----------------------------------------------------------- evaluation
-    @cached_property
-    def _evaluators(self) -> dict[str, FlatEvaluator]:
-        return {}  # built on first use: a large system's Hessian takes seconds to compile
-
     def _evaluator(self, name: str) -> FlatEvaluator:
-        if name not in self._evaluators:
-            p = self.pieces
-            args = self.arguments
-            if name == "L":
-                built = FlatEvaluator([p.L], args)
-            elif name == "Lv":
-                built = FlatEvaluator(list(p.Lv), args)
-            elif name == "Lvv":
-                built = FlatEvaluator.from_blocks([p.Lvv], args)
-            elif name == "gradient":
-                built = FlatEvaluator([*p.force, *p.Lv], args)
-            elif name == "hessian":
-                # stage pieces: L_q + f, L_v, L_qq + f_q, L_qv, L_vv (and f_v when nonzero)
-                blocks = [p.force, p.Lv, p.force_q, p.Lqv, p.Lvv]
-                if not self.structure.zero_fv:
-                    blocks.append(p.fv)
-                built = FlatEvaluator.from_blocks(blocks, args)
-            elif name in ("g", "g_q", "g_t", "g_qq"):
-                c = self.constraint_pieces
-                if c is None:
-                    raise KeyError(f"{name!r}: the system has no constraints")
-                blocks = {"g": [c.g], "g_q": [c.jacobian], "g_t": [c.rate], "g_qq": c.hessians}
-                built = FlatEvaluator.from_blocks(blocks[name], args)
-            elif name == "Lvt":
-                built = FlatEvaluator([sp.diff(e, self.time_symbol) for e in p.Lv], args)
-            else:
-                raise KeyError(f"unknown piece {name!r}")
-            self._evaluators[name] = built
-        return self._evaluators[name]
+        # built on first use: a large system's Hessian takes seconds to compile
+        return self.derived.get(("evaluators", name), lambda: self._build_evaluator(name))
+
+    def _build_evaluator(self, name: str) -> FlatEvaluator:
+        p = self.pieces
+        args = self.arguments
+        if name == "L":
+            return FlatEvaluator([p.L], args)
+        if name == "Lv":
+            return FlatEvaluator(list(p.Lv), args)
+        if name == "Lvv":
+            return FlatEvaluator.from_blocks([p.Lvv], args)
+        if name == "gradient":
+            return FlatEvaluator([*p.force, *p.Lv], args)
+        if name == "hessian":
+            # stage pieces: L_q + f, L_v, L_qq + f_q, L_qv, L_vv (and f_v when nonzero)
+            blocks = [p.force, p.Lv, p.force_q, p.Lqv, p.Lvv]
+            if not self.structure.zero_fv:
+                blocks.append(p.fv)
+            return FlatEvaluator.from_blocks(blocks, args)
+        if name in ("g", "g_q", "g_t", "g_qq"):
+            c = self.constraint_pieces
+            if c is None:
+                raise KeyError(f"{name!r}: the system has no constraints")
+            blocks = {"g": [c.g], "g_q": [c.jacobian], "g_t": [c.rate], "g_qq": c.hessians}
+            return FlatEvaluator.from_blocks(blocks[name], args)
+        if name == "Lvt":
+            return FlatEvaluator([sp.diff(e, self.time_symbol) for e in p.Lv], args)
+        raise KeyError(f"unknown piece {name!r}")
 
     def evaluate(self, name: str, t: ArrayLike, q: ArrayLike, v: ArrayLike, prm: NDArray):
         """Evaluate the piece ``name`` at points given as arrays of shape (..., n).

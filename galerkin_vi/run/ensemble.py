@@ -489,9 +489,10 @@ def compile_statistics() -> dict[str, int]:
         for loop in (*(getattr(loops, name) for name in _LOOP_NAMES), members_loop):
             counts["loops_loaded"] += sum(loop.stats.cache_hits.values())
             counts["loops_compiled"] += sum(loop.stats.cache_misses.values())
-    for integrator in _INTEGRATORS.values():
-        points = integrator.__dict__.get("_points")
-        for compiled in getattr(points, "compiled", {}).values():
-            hit = compiled.cache_hits > 0
-            counts["points_loaded" if hit else "points_compiled"] += 1
+    systems = {id(integrator.system): integrator.system for integrator in _INTEGRATORS.values()}
+    for system in systems.values():
+        for _, points in system.derived.owned_by("points"):
+            for compiled in points.compiled.values():
+                hit = compiled.cache_hits > 0
+                counts["points_loaded" if hit else "points_compiled"] += 1
     return counts

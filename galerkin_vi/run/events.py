@@ -140,11 +140,8 @@ def event_function(event: Event, system: LagrangianSystem) -> Callable:
                 f"the event {expr} contains symbols that are not the system's: {names}"
             )
         # lambdify costs milliseconds: kept with the system (a contact run asks often)
-        cache = system.__dict__.setdefault("_event_functions", {})
-        if expr not in cache:
-            args = [system.time_symbol, *system.q, *system.v, *system.params]
-            cache[expr] = sp.lambdify(args, expr, modules=[np])
-        fn = cache[expr]
+        args = [system.time_symbol, *system.q, *system.v, *system.params]
+        fn = system.derived.get(("events", expr), lambda: sp.lambdify(args, expr, modules=[np]))
 
         def values(t, q, v, prm):
             out = fn(t, *q.T, *v.T, *prm)

@@ -1,7 +1,12 @@
-"""How a run ended: the status codes of a :class:`~galerkin_vi.Trajectory`.
+"""How a solve ended: the result convention and the status codes of a run.
 
-The codes follow :func:`scipy.integrate.solve_ivp`: 0 the run reached its end,
-1 a terminal event stopped it, negative a failure. solve_ivp has one failure
+Every result (:class:`~galerkin_vi.Trajectory`, ``AdaptiveTrajectory``,
+``BoundaryValueResult``, ``PeriodicOrbit``, ``OptimalControl``) is a
+:class:`SolverResult`: it has ``status``, a member of a :class:`SolverStatus`
+enum, ``message``, the status in words, and ``success``, derived from the
+status. The codes follow :func:`scipy.integrate.solve_ivp`: 0 the solve
+reached its end, positive it stopped where the user asked (a terminal event),
+negative a failure; so ``success == (status >= 0)``. solve_ivp has one failure
 code (-1); here each cause has its own, so that a caller can tell a step size
 past the stability limit from an interrupted run without parsing the message.
 """
@@ -10,10 +15,30 @@ from __future__ import annotations
 
 from enum import IntEnum
 
-__all__ = ["RunStatus", "loop_status"]
+__all__ = ["RunStatus", "SolverResult", "SolverStatus", "loop_status"]
 
 
-class RunStatus(IntEnum):
+class SolverStatus(IntEnum):
+    """Base of every status enum: 0 done, > 0 stopped on the user's request, < 0 failed."""
+
+
+class SolverResult:
+    """The convention of every result, as scipy's: ``status``, ``message``, ``success``.
+
+    A subclass (a dataclass) defines the fields ``status`` (a :class:`SolverStatus`
+    member) and ``message`` (a non-empty str); ``success`` follows from the status.
+    """
+
+    status: SolverStatus
+    message: str
+
+    @property
+    def success(self) -> bool:
+        """True unless the solve failed (``status < 0``); a terminal event is a success."""
+        return self.status >= 0
+
+
+class RunStatus(SolverStatus):
     """Why a run stopped (``Trajectory.status``); ``success`` is ``status >= 0``."""
 
     COMPLETED = 0

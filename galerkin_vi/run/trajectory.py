@@ -12,13 +12,13 @@ from numpy.typing import NDArray
 from ..model.system import LagrangianSystem
 from .dense import DenseOutput, stencil_nodes
 from .piecewise import PiecewiseDenseOutput
-from .status import RunStatus
+from .status import RunStatus, SolverResult
 
 __all__ = ["Trajectory"]
 
 
 @dataclass(frozen=True, eq=False)
-class Trajectory:
+class Trajectory(SolverResult):
     r"""Saved states :math:`(t_k, q_k, p_k)` of a run.
 
     Attributes
@@ -91,11 +91,6 @@ class Trajectory:
 
     def __len__(self) -> int:
         return self.t.shape[0]
-
-    @property
-    def success(self) -> bool:
-        """True unless the run failed (``status < 0``); a terminal event is a success."""
-        return self.status >= 0
 
     @property
     def mean_newton_iterations(self) -> float:
