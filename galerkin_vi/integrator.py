@@ -32,6 +32,7 @@ from .run.ensemble import integrate_many
 from .run.events import apply_events, as_events, event_function, locate_events, terminal_stop
 from .run.failures import check_failure_mode, failed_run
 from .run.growth import EXPLOSIVE_GROWTH, INSTABILITY_GROWTH, explosive_row
+from .run.outputs import at_times, requested_times
 from .run.status import RunStatus, loop_status
 from .run.trajectory import Trajectory
 
@@ -538,7 +539,7 @@ class Integrator:
             raise TypeError(f"dense_output must be True or False, got {dense_output!r}")
         event_list = as_events(events)
         event_functions = [event_function(e, system) for e in event_list]
-        times = _requested_times(t_eval, t0, h, n_steps)
+        times = requested_times(t_eval, t0, t0 + n_steps * h, h)
         if event_list or times is not None:
             dense_output = True
         if dense_output and save_every != 1:
@@ -582,7 +583,7 @@ class Integrator:
         if event_list:
             traj = self._with_events(traj, event_list, event_functions, prm)
         if times is not None and traj.sol is not None:
-            traj = _at_times(traj, times)
+            traj = at_times(traj, times)
         if traj.status == RunStatus.INTERRUPTED:
             # asked for by the user: returned in either failure mode
             warnings.warn(traj.message, RunFailureWarning, stacklevel=3)
@@ -1092,30 +1093,6 @@ class Integrator:
                 residual=result.increment,
             )
         return qb + result.x[-n:]
-
-
-def _requested_times(t_eval, t0: float, h: float, n_steps: int) -> NDArray | None:
-    """``t_eval`` checked: finite, in the span, monotone in the run's direction."""
-    if t_eval is None:
-        return None
-    times = np.atleast_1d(np.asarray(t_eval, dtype=float))
-    if times.ndim != 1 or not np.all(np.isfinite(times)):
-        raise ValueError("t_eval must be a 1-d array of finite times")
-    end = t0 + n_steps * h
-    lo, hi = min(t0, end), max(t0, end)
-    tiny = 8 * np.finfo(float).eps * max(1.0, abs(lo), abs(hi))
-    if times.size and (times.min() < lo - tiny or times.max() > hi + tiny):
-        raise ValueError(f"t_eval must lie in the run's span [{lo}, {hi}]")
-    if np.any(np.diff(times) * h < 0):
-        raise ValueError("t_eval must be sorted in the direction of integration")
-    return np.clip(times, lo, hi)
-
-
-def _at_times(traj: Trajectory, times: NDArray) -> Trajectory:
-    """``traj`` with rows at ``times`` from its dense output (a run cut short: those reached)."""
-    sol = traj.sol
-    reached = times[(times >= sol.t_min) & (times <= sol.t_max)]
-    return replace(traj, t=reached, q=sol(reached), p=sol.momentum(reached), q_reduced=None)
 
 
 def _span_steps(h: float, n_steps, t_span, t0) -> tuple[float, object, object]:

@@ -39,7 +39,13 @@ from .failures import check_failure_mode
 from .growth import EXPLOSIVE_GROWTH, INSTABILITY_GROWTH
 from .trajectory import Trajectory
 
-__all__ = ["Ensemble", "compile_statistics", "integrate_many", "member_parameters"]
+__all__ = [
+    "Ensemble",
+    "compile_statistics",
+    "integrate_many",
+    "member_parameters",
+    "member_starts",
+]
 
 #: keyword arguments of a run that the compiled member loop takes (others: one by one)
 COMPILED_RUN = frozenset({"h", "n_steps", "t0", "t_span", "save_every", "on_failure", "progress"})
@@ -126,7 +132,9 @@ def _parameter_columns(params: Mapping, m: int) -> dict:
     return columns
 
 
-def _starts(q0s: ArrayLike, v0s, p0s, n: int) -> tuple[NDArray, str, NDArray]:
+def member_starts(q0s: ArrayLike, v0s, p0s, n: int) -> tuple[NDArray, str, NDArray]:
+    """(q (m, n), "v0" or "p0", velocities or momenta (m, n)) of the members, single rows
+    repeated for every member."""
     if (v0s is None) == (p0s is None):
         raise ValueError("give exactly one of v0s and p0s")
     name = "v0" if v0s is not None else "p0"
@@ -155,7 +163,7 @@ def integrate_many(
     **run,
 ) -> Ensemble:
     """Integrate every member; see :meth:`Integrator.integrate_many`."""
-    q, name, x = _starts(q0s, v0s, p0s, integrator.system.n)
+    q, name, x = member_starts(q0s, v0s, p0s, integrator.system.n)
     m = q.shape[0]
     run.setdefault("progress", False)
     workers = workers or os.cpu_count() or 1
