@@ -586,6 +586,7 @@ class AdaptiveIntegrator:
                 chunk = self._next_chunk(rows, h, n_steps, t_final, largest)
             if landing:
                 self._land(rows, h, t_final, params)
+            bar.update(rows.steps if n_steps is not None else abs(t_final - rows.first_clock))
         except KeyboardInterrupt:
             interrupted = True
         finally:
@@ -770,6 +771,7 @@ class AdaptiveIntegrator:
             f"{message} .partial holds the states before it in physical time.",
             step=exc.step, t=t, residual=exc.residual, partial=partial,
         )  # fmt: skip
+
 
 @dataclass
 class _Rows:
