@@ -4,7 +4,7 @@ t_span, backward runs, Ctrl-C, integrate_many and step."""
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -234,14 +234,14 @@ def test_progress_bar_and_failure_with_events(adaptive, capsys):
 
 
 # ------------------------------------------------------------------ ensembles, step
-@pytest.mark.parametrize("executor", [None, "threads"])
+@pytest.mark.parametrize("executor", [None, ThreadPoolExecutor, ProcessPoolExecutor])
 def test_integrate_many_equals_one_run_per_member(adaptive, executor):
     eccentricities = (0.5, 0.7, 0.9)
     problems = [gravitation.kepler(e) for e in eccentricities]
     q0s = np.array([k.q0 for k in problems])
     v0s = np.array([k.v0 for k in problems])
     times = np.linspace(0.0, PERIOD, 9)
-    pool = ThreadPoolExecutor(2) if executor else None
+    pool = executor(2) if executor else None
     try:
         ensemble = adaptive.integrate_many(
             q0s, v0s, h=H, t_final=PERIOD, t_eval=times, executor=pool, workers=2
