@@ -847,7 +847,8 @@ class AdaptiveTrajectory(Trajectory):
     ----------
     tau : ndarray, shape (N,)
         The fictitious times of the saved states (equally spaced but for a
-        landing step on ``t_final``).
+        landing step on ``t_final``; at a terminal event and at the rows of
+        ``t_eval``, interpolated).
     clock_momentum : ndarray, shape (N,)
         :math:`p_z = \zeta - g`, 0 in exact arithmetic; its size is the
         round-off of the clock's Noether momentum.
@@ -933,15 +934,19 @@ class _Outputs:
         return cls(dense, event_list, functions, times, t_final, h)
 
 
-def _fictitious_times(t: NDArray, tau: NDArray, rates: NDArray, times: NDArray) -> NDArray:
-    r""":math:`\tau` at physical ``times``: cubic Hermite in the interval of each, through
-    :math:`(t_k, \tau_k)` with slopes :math:`d\tau/dt = 1/g(q_k)`."""
+def _intervals(t: NDArray, times: NDArray) -> NDArray[np.int64]:
+    """The interval k of the run's nodes ``t`` (forwards or backwards) holding each time:
+    ``times`` between ``t[k]`` and ``t[k + 1]``."""
     forward = t[-1] >= t[0]
     nodes = t if forward else t[::-1]
     k = np.clip(np.searchsorted(nodes, times, side="right") - 1, 0, len(t) - 2)
-    if not forward:
-        k = len(t) - 2 - k
-    pair = k[:, None] + np.arange(2)
+    return k if forward else len(t) - 2 - k
+
+
+def _fictitious_times(t: NDArray, tau: NDArray, rates: NDArray, times: NDArray) -> NDArray:
+    r""":math:`\tau` at physical ``times``: cubic Hermite in the interval of each, through
+    :math:`(t_k, \tau_k)` with slopes :math:`d\tau/dt = 1/g(q_k)`."""
+    pair = _intervals(t, times)[:, None] + np.arange(2)
     value, _ = hermite(t[pair], tau[pair][..., None], (1.0 / rates)[pair][..., None], times)
     return value[:, 0]
 
@@ -950,12 +955,9 @@ def _rows_at(traj, full, times: NDArray, rates: NDArray):
     """``traj`` at ``times`` from ``full``'s dense output (``tau`` interpolated too)."""
     rows = at_times(traj, times)
     tau = _fictitious_times(full.t, full.tau, rates, rows.t)
-    # p_z is constant to round-off: the value of the interval's first node
-    forward = full.t[-1] >= full.t[0]
-    nodes = full.t if forward else full.t[::-1]
-    k = np.clip(np.searchsorted(nodes, rows.t, side="right") - 1, 0, len(full.t) - 1)
-    k = k if forward else len(full.t) - 1 - k
-    return replace(rows, tau=tau, clock_momentum=full.clock_momentum[k])
+    # p_z is constant to round-off: the value at the interval's first node
+    momentum = full.clock_momentum[_intervals(full.t, rows.t)]
+    return replace(rows, tau=tau, clock_momentum=momentum)
 
 
 class _Bar:

@@ -64,6 +64,10 @@ def test_t_eval_rows_are_the_orbit_at_the_requested_times(adaptive, orbit, span)
     k = np.searchsorted(traj.sol.t, times[1:-1])
     steps = adaptive.integrate(kepler.q0, kepler.v0, h=H, **run)
     assert np.all((steps.tau[k - 1] <= traj.tau[1:-1]) & (traj.tau[1:-1] <= steps.tau[k]))
+    # at the steps' own times the rows are the steps (interpolants through the nodes)
+    nodes = adaptive.integrate(kepler.q0, kepler.v0, h=H, t_eval=steps.t[:40], **run)
+    np.testing.assert_allclose(nodes.tau, steps.tau[:40], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(nodes.q, steps.q[:40], rtol=0, atol=1e-13)
 
 
 def test_t_eval_outside_the_span_is_named(adaptive, orbit):
