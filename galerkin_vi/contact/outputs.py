@@ -73,7 +73,7 @@ def run_options(system, h, n_steps, t0, save_every, dense_output, events, t_eval
         raise TypeError(f"progress must be True, False or None, got {progress!r}")
     event_list = as_events(events)
     functions = [event_function(e, system) for e in event_list]
-    times = requested_times(t_eval, t0, t0 + n_steps * h)
+    times = requested_times(t_eval, t0, t0 + n_steps * h, h)
     dense_output = dense_output or bool(event_list) or times is not None
     if dense_output and save_every != 1:
         what = "events are located" if event_list else "dense_output=True interpolates"

@@ -42,7 +42,13 @@ from .start import initial_state
 from .trajectory import Trajectory
 from .trust import checks_instability, momenta_grew, within_growth_bound
 
-__all__ = ["Ensemble", "compile_statistics", "integrate_many", "member_parameters"]
+__all__ = [
+    "Ensemble",
+    "compile_statistics",
+    "integrate_many",
+    "member_parameters",
+    "member_starts",
+]
 
 #: keyword arguments of a run that the compiled member loop takes (others: one by one)
 COMPILED_RUN = frozenset({"h", "n_steps", "t0", "t_span", "save_every", "on_failure", "progress"})
@@ -129,7 +135,9 @@ def _parameter_columns(params: Mapping, m: int) -> dict:
     return columns
 
 
-def _starts(q0s: ArrayLike, v0s, p0s, n: int) -> tuple[NDArray, str, NDArray]:
+def member_starts(q0s: ArrayLike, v0s, p0s, n: int) -> tuple[NDArray, str, NDArray]:
+    """(q (m, n), "v0" or "p0", velocities or momenta (m, n)) of the members, single rows
+    repeated for every member."""
     if (v0s is None) == (p0s is None):
         raise ValueError("give exactly one of v0s and p0s")
     name = "v0" if v0s is not None else "p0"
@@ -158,7 +166,7 @@ def integrate_many(
     **run,
 ) -> Ensemble:
     """Integrate every member; see :meth:`Integrator.integrate_many`."""
-    q, name, x = _starts(q0s, v0s, p0s, integrator.system.n)
+    q, name, x = member_starts(q0s, v0s, p0s, integrator.system.n)
     m = q.shape[0]
     run.setdefault("progress", False)
     workers = workers or os.cpu_count() or 1

@@ -108,18 +108,45 @@ def _span_steps(h: float, n_steps, t_span, t0) -> tuple[float, object, object]:
     return (end - start) / steps, steps, start
 
 
-def requested_times(t_eval, t0: float, t_end: float) -> NDArray | None:
-    """``t_eval`` checked: finite, in ``[t0, t_end]`` (either order), monotone in the
-    run's direction; None when not given."""
+def requested_times(
+    t_eval: ArrayLike | None, start: float, end: float | None, direction: float
+) -> NDArray[np.float64] | None:
+    """``t_eval`` checked: finite, in the span between ``start`` and ``end``, monotone.
+
+    Parameters
+    ----------
+    t_eval : array_like or None
+        The requested times (None: no request, None returned).
+    start, end : float
+        The run's first and last time (in either order). ``end`` None: not known
+        before the run (an adaptive run of a number of steps); only the side of
+        ``start`` the times lie on is checked then.
+    direction : float
+        The sign of the run's direction in time (> 0 forwards, < 0 backwards):
+        ``t_eval`` must be sorted that way.
+
+    Returns
+    -------
+    ndarray or None
+        The times, clipped onto the span (a request a few ulps outside it is
+        the end itself).
+    """
     if t_eval is None:
         return None
     times = np.atleast_1d(np.asarray(t_eval, dtype=float))
     if times.ndim != 1 or not np.all(np.isfinite(times)):
         raise ValueError("t_eval must be a 1-d array of finite times")
-    lo, hi = min(t0, t_end), max(t0, t_end)
+    if end is None:
+        tiny = 8 * np.finfo(float).eps * max(1.0, abs(start))
+        if times.size and np.any((times - start) * direction < -tiny):
+            raise ValueError(f"t_eval must lie in the direction of integration from {start}")
+        if np.any(np.diff(times) * direction < 0):
+            raise ValueError("t_eval must be sorted in the direction of integration")
+        return np.maximum(times, start) if direction > 0 else np.minimum(times, start)
+    lo, hi = min(start, end), max(start, end)
     tiny = 8 * np.finfo(float).eps * max(1.0, abs(lo), abs(hi))
     if times.size and (times.min() < lo - tiny or times.max() > hi + tiny):
         raise ValueError(f"t_eval must lie in the run's span [{lo}, {hi}]")
-    if np.any(np.diff(times) * (t_end - t0) < 0):
+    if np.any(np.diff(times) * direction < 0):
         raise ValueError("t_eval must be sorted in the direction of integration")
     return np.clip(times, lo, hi)

@@ -45,7 +45,7 @@ def integrate_smooth(
         raise TypeError(f"progress must be True, False or None, got {progress!r}")
     event_list = as_events(events)
     event_functions = [event_function(e, system) for e in event_list]
-    times = requested_times(t_eval, plan.t0, plan.t_end)
+    times = requested_times(t_eval, plan.t0, plan.t_end, plan.h)
     if event_list or times is not None:
         dense_output = True
     if dense_output and plan.save_every != 1:
