@@ -67,7 +67,10 @@ class Ensemble:
     q, p : ndarray, shape (m, N, n) or None
         Stacked positions and momenta (None when the members differ in length,
         e.g. after a failure or a terminal event).
-    success, status : ndarray, shape (m,)
+    success : ndarray of bool, shape (m,)
+        Each member's ``Trajectory.success``.
+    status : ndarray of int, shape (m,)
+        Each member's ``Trajectory.status``.
     trajectories : list of Trajectory
         One per member (built on first access from the stacked arrays).
     """
