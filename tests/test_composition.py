@@ -16,7 +16,6 @@ reference's own error is :math:`8^{-p}` of that.
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
@@ -300,9 +299,7 @@ def test_several_events_and_a_terminal_one_match_a_run_at_half_the_step(name):
         # the double pendulum's first angle has two minima before it comes back up
         assert len(down_up) == 2 and len(minima) >= 1 and len(terminal) == 1
         assert down_up[0] < minima[0] < down_up[1] == terminal[0] == traj.t[-1]
-        np.testing.assert_allclose(
-            traj.q_events[0][:, kind.watch], kind.centre, rtol=0, atol=1e-12
-        )
+        np.testing.assert_allclose(traj.q_events[0][:, kind.watch], kind.centre, rtol=0, atol=1e-12)
     for coarse, fine in zip(runs[0].t_events, runs[1].t_events, strict=True):
         np.testing.assert_allclose(coarse, fine, rtol=0, atol=EVENT_TOLERANCE)
 
@@ -415,9 +412,7 @@ def test_integrate_many_members_equal_single_runs_bit_for_bit(name):
 def test_stream_chunks_joined_equal_one_run(name):
     kind, integrator = KINDS[name], _integrator(name)
     whole = _run(name)
-    parts = list(
-        integrator.stream(kind.q0, kind.v0, h=kind.h, n_steps=kind.n_steps, chunk_steps=6)
-    )
+    parts = list(integrator.stream(kind.q0, kind.v0, h=kind.h, n_steps=kind.n_steps, chunk_steps=6))
     steps = [6] * (kind.n_steps // 6) + [kind.n_steps % 6]
     assert [len(part) for part in parts] == [steps[0] + 1, *steps[1:]]
     _assert_same_rows(parts[0], _run(name, n_steps=6))  # the first chunk is a run of its own
