@@ -10,8 +10,11 @@ contacts and adaptive runs have their own matrices
 
 Accuracy cells compare with the same method at ``h / 8``: the method of order
 ``p`` has global error :math:`\\approx C h^p` (:math:`p = 2s` for ``Galerkin(s)``),
-so the tolerance is ``ACCURACY * h**p`` with one constant for all kinds; the
-reference's own error is :math:`8^{-p}` of that.
+so the tolerance is ``C h^p`` with ``C = ACCURACY`` for the implicit kinds (their
+measured constants lie 3 to 30 times below it) and ``ACCURACY_EXPLICIT`` for
+Störmer–Verlet; the reference's own error is :math:`8^{-p}` of that. Event times
+are compared with a run at half the step: their difference is
+:math:`(1 - 2^{-p})` times the error of the run at the larger step.
 """
 
 from __future__ import annotations
@@ -32,10 +35,16 @@ t_sym = sp.Symbol("t")
 q, v, c = sp.symbols("q v c")
 x, y, vx, vy = sp.symbols("x y vx vy")
 
-#: error of t_eval rows and dense output against the h/8 reference, in units of h**order
-ACCURACY = 1.0
+#: error constant C of t_eval rows and dense output (error < C h**order against the h/8
+#: reference): the measured constants are 6e-4 to 6e-3 for the kinds of order 4 and 6
+ACCURACY = 0.02
+#: the explicit (Störmer–Verlet) kind's constant: measured 0.05 on the Duffing oscillator
+ACCURACY_EXPLICIT = 0.5
+#: the momenta's constant relative to the positions': they come from the interpolant's
+#: derivative through M(q) (measured 6e-3 h^6 for the double pendulum, 3e-3 h^6 in q)
+MOMENTA = 10.0
 #: a forward run followed by the backward run returns to its start to this (round-off)
-ROUND_TRIP = 1e-12
+ROUND_TRIP = 1e-13
 #: event times against the reference run at half the step
 EVENT_TOLERANCE = 1e-10
 N_CHAIN = 12
@@ -80,7 +89,7 @@ class Kind:
 KINDS: dict[str, Kind] = {
     "plain": Kind(
         lambda: gvi.Integrator(_pendulum(), gvi.Galerkin(2)),
-        (1.0,), (0.0,), "separable", 4, 0.1, 20, True, 5.0, 2e-3,
+        (1.0,), (0.0,), "separable", 4, 0.1, 20, True, 5.0, 1e-2,
     ),
     "forced": Kind(
         lambda: gvi.Integrator(
@@ -89,7 +98,7 @@ KINDS: dict[str, Kind] = {
             ),
             gvi.Galerkin(2),
         ),
-        (1.0,), (0.0,), "newton", 4, 0.1, 20, False, 5.0, 2e-3,
+        (1.0,), (0.0,), "newton", 4, 0.1, 20, False, 5.0, 1e-2,
     ),
     "time-dependent": Kind(
         lambda: gvi.Integrator(
@@ -98,7 +107,7 @@ KINDS: dict[str, Kind] = {
             ),
             gvi.Galerkin(2),
         ),
-        (1.0,), (0.0,), "separable", 4, 0.1, 20, False, 5.0, 2e-3,
+        (1.0,), (0.0,), "separable", 4, 0.1, 20, False, 5.0, 1e-2,
     ),
     "constrained": Kind(
         lambda: gvi.Integrator(
@@ -107,7 +116,7 @@ KINDS: dict[str, Kind] = {
             ),
             gvi.Galerkin(2),
         ),
-        (np.sin(1.0), -np.cos(1.0)), (0.0, 0.0), "constrained", 4, 0.1, 20, True, 5.0, 2e-3,
+        (np.sin(1.0), -np.cos(1.0)), (0.0, 0.0), "constrained", 4, 0.1, 20, True, 5.0, 5e-3,
     ),
     "varying mass": Kind(
         lambda: gvi.Integrator(
@@ -118,7 +127,7 @@ KINDS: dict[str, Kind] = {
     "banded": Kind(
         lambda: gvi.Integrator(problems.spring_chain(N_CHAIN, beta=1.0).system, gvi.Galerkin(2)),
         tuple(_chain_start()[0]), tuple(_chain_start()[1]), "separable", 4, 0.1, 20, True,
-        5.0, 2e-3, watch=5,
+        5.0, 5e-3, watch=5,
     ),
     "linear": Kind(
         lambda: gvi.Integrator(
@@ -127,7 +136,7 @@ KINDS: dict[str, Kind] = {
         (1.0,), (0.0,), "linear", 4, 0.1, 20, True,
         "the linear loop solves each step's linear equations with one LU factorisation: "
         "nothing iterates, so no step size makes it fail (an unstable one only grows)",
-        2e-3,
+        1e-2,
     ),
     "explicit": Kind(
         lambda: gvi.Integrator(
@@ -137,7 +146,7 @@ KINDS: dict[str, Kind] = {
     ),
     "numpy reference": Kind(
         lambda: gvi.Integrator(_pendulum(), gvi.Galerkin(2), backend="numpy"),
-        (1.0,), (0.0,), "newton", 4, 0.1, 20, True, 5.0, 2e-3,
+        (1.0,), (0.0,), "newton", 4, 0.1, 20, True, 5.0, 1e-2,
     ),
 }  # fmt: skip
 NAMES = list(KINDS)
@@ -163,7 +172,8 @@ def _fine(name: str, t0: float = 0.0, sign: float = 1.0) -> gvi.Trajectory:
 
 def _tolerance(name: str) -> float:
     kind = KINDS[name]
-    return ACCURACY * kind.h**kind.order
+    constant = ACCURACY_EXPLICIT if kind.path == "explicit" else ACCURACY
+    return constant * kind.h**kind.order
 
 
 def _assert_same_rows(a: gvi.Trajectory, b: gvi.Trajectory) -> None:
@@ -258,7 +268,7 @@ def test_t_eval_rows_match_the_fine_reference_to_the_methods_order(name):
     q_ref, p_ref = _reference_rows(name, times)
     tol = _tolerance(name)
     np.testing.assert_allclose(traj.q, q_ref, rtol=0, atol=tol)
-    np.testing.assert_allclose(traj.p, p_ref, rtol=0, atol=10 * tol)
+    np.testing.assert_allclose(traj.p, p_ref, rtol=0, atol=MOMENTA * tol)
     assert traj.sol is not None
 
 
@@ -271,7 +281,7 @@ def test_dense_output_interpolates_the_nodes_and_matches_the_fine_run(name):
     q_ref, p_ref = _reference_rows(name, times)
     tol = _tolerance(name)
     np.testing.assert_allclose(traj.sol(times), q_ref, rtol=0, atol=tol)
-    np.testing.assert_allclose(traj.sol.momentum(times), p_ref, rtol=0, atol=10 * tol)
+    np.testing.assert_allclose(traj.sol.momentum(times), p_ref, rtol=0, atol=MOMENTA * tol)
 
 
 def _events(name: str) -> list[gvi.Event]:
