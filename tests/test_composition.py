@@ -64,10 +64,10 @@ def _chain_start() -> tuple[np.ndarray, np.ndarray]:
 class Kind:
     """A model kind of the matrix and what its cells need.
 
-    The event coordinate ``q[watch]`` starts at rest on one side of ``centre``
-    and oscillates about it, so that its first zero crossings, its first
-    minimum and its first upward crossing (the terminal event) come in the
-    first period.
+    The event coordinate ``q[watch]`` starts at rest above ``centre`` and
+    oscillates about it: in its first period it crosses the centre going
+    down, passes one minimum or more, and crosses it going up (the terminal
+    event), all before t = 12.
     """
 
     build: Callable[[], gvi.Integrator]
@@ -242,7 +242,7 @@ def test_t_span_lands_on_its_end_with_the_resolved_step(name):
     spanned = _run(name, n_steps=None, t_span=(t0, t1))
     stepped = _run(name, h=(t1 - t0) / n, n_steps=n, t0=t0)
     assert len(spanned) == n + 1 and spanned.t[0] == t0
-    assert spanned.t[-1] == pytest.approx(t1, rel=0, abs=4e-16)
+    assert spanned.t[-1] == t1  # exactly: the last time is the span's end
     _assert_same_rows(spanned, stepped)
 
 
