@@ -205,5 +205,17 @@ class DenseOutput:
             index = stencils[:, None] + np.arange(size)
             z, coef = hermite_coefficients(self.t[index], self.q[index], self.v[index])
             y, dy = hermite_evaluate(z[which], coef[which], flat)
+        self._keep_nodes(k, flat, y, dy)
         shape = times.shape + (self.q.shape[1],)
         return y.reshape(shape), dy.reshape(shape)
+
+    def _keep_nodes(self, k: NDArray, flat: NDArray, y: NDArray, dy: NDArray) -> None:
+        """Put the nodal data at the query points that are nodes of interval k, in place.
+
+        Horner's rule on Newton's form reproduces only the stencil's first node
+        exactly; at the others it rounds, and ``sol(t_k)`` must be ``q_k``.
+        """
+        for j in (k, k + 1):
+            at = self.t[j] == flat
+            y[at] = self.q[j[at]]
+            dy[at] = self.v[j[at]]
