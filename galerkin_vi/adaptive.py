@@ -165,6 +165,13 @@ class PoincareTransform:
                 "the Poincaré time transformation is implemented for systems without "
                 "constraints or forces"
             )
+        if system.contacts:
+            raise ValueError(
+                "the Poincaré time transformation keeps the energy E of K = g (H - E) "
+                "fixed, and an impact with restitution e < 1 or friction changes H: "
+                "integrate a system with contacts with Integrator (fixed steps, impacts "
+                "located at the method's order)"
+            )
         if isinstance(g, numbers.Real):
             g = sp.sympify(g)
         if not isinstance(g, sp.Expr):
@@ -318,6 +325,7 @@ class AdaptiveIntegrator:
         events: object = None,
         progress: bool | None = None,
         t_eval: ArrayLike | None = None,
+        project: bool = False,
     ) -> AdaptiveTrajectory:
         r"""Integrate with fictitious step ``h`` for ``n_steps`` steps or up to ``t_final``.
 
@@ -379,6 +387,10 @@ class AdaptiveIntegrator:
             with the states computed so far (their dense output and events
             included), ``status`` INTERRUPTED and a warning, whatever
             ``on_failure`` says.
+        project : bool
+            Accepted for the signature of :meth:`Integrator.integrate`; the
+            Poincaré transformation applies to systems without constraints,
+            so there is nothing to project onto and ``True`` is an error.
 
         Returns
         -------
@@ -395,6 +407,11 @@ class AdaptiveIntegrator:
             fictitious step.
         """
         check_failure_mode(on_failure)
+        if project:
+            raise ValueError(
+                "project=True needs a system with constraints; the Poincaré time "
+                "transformation applies to systems without them"
+            )
         h = _fictitious_step(h)
         t0, t_final = _physical_span(t_span, t0, t_final, n_steps, h)
         save_every = _save_interval(save_every)

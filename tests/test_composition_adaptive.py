@@ -273,3 +273,17 @@ def test_step_is_one_step_of_the_run(adaptive):
         np.testing.assert_allclose(t, run.t[k], rtol=0, atol=1e-13)
     back = adaptive.step(q, p, -H, t, energy=energy)
     np.testing.assert_allclose(back[0], run.q[19], rtol=0, atol=1e-13)
+
+
+def test_combinations_without_meaning_say_why(adaptive, orbit):
+    _, problem = orbit
+    q0, v0 = problem.q0, problem.v0
+    # no constraints under the Poincaré transformation: nothing to project onto
+    with pytest.raises(ValueError, match="project=True needs a system with constraints"):
+        adaptive.integrate(q0, v0, h=H, n_steps=3, project=True)
+    # a system with contacts: impacts change H, which the transformation keeps fixed
+    floor = gvi.LagrangianSystem(
+        (vx**2 + vy**2) / 2 - 1 / R, [x, y], [vx, vy], contacts=[gvi.Contact(gap=y + 2.0)]
+    )
+    with pytest.raises(ValueError, match="impact"):
+        gvi.AdaptiveIntegrator(floor, gvi.Galerkin(2, gvi.gauss_legendre(2)), g=R**1.5)
