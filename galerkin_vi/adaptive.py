@@ -228,8 +228,8 @@ class AdaptiveIntegrator:
         self.transform = PoincareTransform(system, g)
         self.system = system
         # the long fictitious steps are near the fixed point's limit, where it hands
-        # over to Newton: Newton alone is faster there (Kepler e = 0.9, Gauss(4), 20
-        # periods at a fictitious step of 0.2: 7.8 against 9.9 ms)
+        # over to Newton: Newton alone takes less time there (docs/performance.md,
+        # "Measurements behind design choices")
         options.setdefault("fixed_point", False)
         self.integrator = Integrator(self.transform.extended, method, **options)
         self.method = self.integrator.method
@@ -417,10 +417,10 @@ class AdaptiveIntegrator:
             if past.size:
                 break
             # the mean dt/dtau of the whole run so far predicts the steps still needed;
-            # that of the last chunk alone, which may have ended at a close encounter
-            # (dt/dtau = g small), overestimated them by up to the ratio of g's extremes,
-            # and the steps past t_final were computed for nothing (14x the work kept on
-            # Kepler e = 0.9). Chunks cover half of the prediction and grow at most 4x:
+            # that of the last chunk alone, which may end at a close encounter
+            # (dt/dtau = g small), overestimates them by up to the ratio of g's extremes,
+            # and the steps past t_final are computed for nothing (up to 14x the work kept
+            # on Kepler e = 0.9). Chunks cover half of the prediction and grow at most 4x:
             # a few more calls, no large overshoot.
             done = rows.steps
             rate = (float(rows.last_q[-1]) - rows.first_clock) / tau
