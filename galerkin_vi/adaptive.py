@@ -254,8 +254,8 @@ class AdaptiveIntegrator:
         self.transform = PoincareTransform(system, g)
         self.system = system
         # the long fictitious steps are near the fixed point's limit, where it hands
-        # over to Newton: Newton alone is faster there (Kepler e = 0.9, Gauss(4), 20
-        # periods at a fictitious step of 0.2: 7.8 against 9.9 ms)
+        # over to Newton: Newton alone takes less time there (docs/performance.md,
+        # "Measurements behind design choices")
         options.setdefault("fixed_point", False)
         #: the integrator's options, for building it again in an executor's worker
         self.options = dict(options)

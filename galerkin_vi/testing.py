@@ -163,6 +163,42 @@ def assert_order(
     """
     __tracebackhide__ = True
     problem, system = _split_problem(system_or_problem)
+    predicted, tolerance = _checked_order_options(
+        method, predicted, tolerance, min_points, measure_order_kwargs
+    )
+    kwargs = dict(measure_order_kwargs)
+    q0, v0, t_final = _initial_data(problem, q0, v0, t_final, kwargs)
+
+    with warnings.catch_warnings():
+        # measure_order warns when fewer than two points are usable; the assertion says more
+        warnings.filterwarnings(
+            "ignore", message="fewer than two step counts", category=RuntimeWarning
+        )
+        result = measure_order(system, method, q0, v0, t_final=t_final, **kwargs)
+
+    used = int(result.mask.sum())
+    difference = abs(result.order - predicted)
+    if used >= min_points and np.isfinite(result.order) and difference <= tolerance:
+        return result
+    raise AssertionError(
+        _order_failure(result, method, problem, t_final, predicted, tolerance, min_points, kwargs)
+    )
+
+
+def _checked_order_options(
+    method: object,
+    predicted: object,
+    tolerance: object,
+    min_points: object,
+    measure_order_kwargs: Mapping[str, Any],
+) -> tuple[float, float]:
+    """Check :func:`assert_order`'s own options; return ``predicted`` and ``tolerance`` as floats.
+
+    ``predicted`` defaults to ``method.order``. The step counts must be able to give
+    ``min_points`` points of the fit, and every other keyword must be an option of
+    :func:`measure_order`.
+    """
+    __tracebackhide__ = True
     if not isinstance(method, Galerkin):
         raise TypeError(f"method must be a galerkin_vi.Galerkin, got {type(method).__name__}")
     if predicted is None:
@@ -195,7 +231,23 @@ def assert_order(
             f"{len(step_counts)} step counts cannot give min_points={min_points} points: "
             "give more step counts or lower min_points"
         )
-    kwargs = dict(measure_order_kwargs)
+    return predicted, tolerance
+
+
+def _initial_data(
+    problem: Problem | None,
+    q0: ArrayLike | None,
+    v0: ArrayLike | None,
+    t_final: float | None,
+    kwargs: dict[str, Any],
+) -> tuple[ArrayLike, ArrayLike | None, float]:
+    """``q0``, ``v0`` and ``t_final`` of the study.
+
+    With a problem, its own values fill in what is not given (and ``kwargs`` gets its
+    parameters and reference); a bare system needs ``q0`` and ``v0`` (or ``p0=``), and
+    ``t_final`` defaults to 2.0.
+    """
+    __tracebackhide__ = True
     if problem is not None:
         q0, v0, t_final = _problem_defaults(problem, q0, v0, t_final, kwargs)
     else:
@@ -208,19 +260,21 @@ def assert_order(
             raise TypeError("assert_order needs v0 (or p0=) for a bare LagrangianSystem")
         if t_final is None:
             t_final = 2.0
-    t_final = _real(t_final, "t_final")
+    return q0, v0, _real(t_final, "t_final")
 
-    with warnings.catch_warnings():
-        # measure_order warns when fewer than two points are usable; the assertion says more
-        warnings.filterwarnings(
-            "ignore", message="fewer than two step counts", category=RuntimeWarning
-        )
-        result = measure_order(system, method, q0, v0, t_final=t_final, **kwargs)
 
+def _order_failure(
+    result: OrderResult,
+    method: Galerkin,
+    problem: Problem | None,
+    t_final: float,
+    predicted: float,
+    tolerance: float,
+    min_points: int,
+    kwargs: Mapping[str, Any],
+) -> str:
+    """The message of a failed :func:`assert_order`: headline, table of runs, fit and hints."""
     used = int(result.mask.sum())
-    difference = abs(result.order - predicted)
-    if used >= min_points and np.isfinite(result.order) and difference <= tolerance:
-        return result
     if used < min_points:
         headline = (
             f"only {used} of {result.errors.size} runs are usable for the fit "
@@ -229,7 +283,7 @@ def assert_order(
     else:
         headline = (
             f"fitted order {result.order:.2f} differs from the predicted {predicted:g} "
-            f"by {difference:.2f} > tolerance {tolerance:g}"
+            f"by {abs(result.order - predicted):.2f} > tolerance {tolerance:g}"
         )
     reasons = _exclusion_reasons(result, kwargs)
     label = problem.name if problem is not None else "the system"
@@ -245,7 +299,7 @@ def assert_order(
     if hints:
         lines.append("hints:")
         lines += [f"  - {hint}" for hint in hints]
-    raise AssertionError("\n".join(lines))
+    return "\n".join(lines)
 
 
 def _split_problem(obj: object) -> tuple[Problem | None, LagrangianSystem]:
@@ -544,6 +598,48 @@ def assert_conserved(
     ...
     """
     __tracebackhide__ = True
+    energy, checks = _checked_conserved_options(
+        trajectory, energy, momenta, momentum_tol, bounded, relative, allow_failed
+    )
+    t = trajectory.t
+    rows = []  # (name, Q0, bound, drift, time, ok)
+    drifts: dict[str, float] = {}
+    H = trajectory.energy() if (energy is not None or bounded) else None
+    if H is not None:
+        drift, when = _drift(H, t, relative)
+        drifts["energy"] = drift
+        if energy is not None:
+            rows.append(("energy", H[0], energy, drift, when, drift <= energy))
+    for name, (xi, bound) in checks.items():
+        J = trajectory.momentum(xi)
+        drift, when = _drift(J, t, relative)
+        drifts[name] = drift
+        rows.append((name, J[0], bound, drift, when, drift <= bound))
+    bounded_ok, bounded_line = True, None
+    if bounded:
+        bounded_ok, bounded_line = _no_drift(H, t)
+    failed = sum(not row[-1] for row in rows) + (bounded and not bounded_ok)
+    if not failed:
+        return drifts
+    raise AssertionError(
+        _conserved_failure(trajectory, rows, bounded_line, failed, bounded, relative)
+    )
+
+
+def _checked_conserved_options(
+    trajectory: object,
+    energy: object,
+    momenta: Mapping[str, Any] | None,
+    momentum_tol: object,
+    bounded: object,
+    relative: object,
+    allow_failed: bool,
+) -> tuple[float | None, dict[str, tuple[tuple[sp.Expr, ...], float]]]:
+    """Check :func:`assert_conserved`'s arguments; return the energy bound and the momentum checks.
+
+    A failed run fails the assertion here unless ``allow_failed``.
+    """
+    __tracebackhide__ = True
     if isinstance(trajectory, ConvergenceError):
         raise TypeError(
             "assert_conserved got a ConvergenceError: pass its .partial trajectory to check "
@@ -576,28 +672,19 @@ def assert_conserved(
             f"bounded=True compares the first and last tenth of the saved states: need at "
             f"least {_MIN_STATES_BOUNDED}, got {len(trajectory)} (lower save_every)"
         )
+    return energy, checks
 
+
+def _conserved_failure(
+    trajectory: Trajectory,
+    rows: Sequence[tuple[str, float, float, float, float, bool]],
+    bounded_line: str | None,
+    failed: int,
+    bounded: bool,
+    relative: bool,
+) -> str:
+    """The message of a failed :func:`assert_conserved`: a table of the checks and their drifts."""
     t = trajectory.t
-    rows = []  # (name, Q0, bound, drift, time, ok)
-    drifts: dict[str, float] = {}
-    H = trajectory.energy() if (energy is not None or bounded) else None
-    if H is not None:
-        drift, when = _drift(H, t, relative)
-        drifts["energy"] = drift
-        if energy is not None:
-            rows.append(("energy", H[0], energy, drift, when, drift <= energy))
-    for name, (xi, bound) in checks.items():
-        J = trajectory.momentum(xi)
-        drift, when = _drift(J, t, relative)
-        drifts[name] = drift
-        rows.append((name, J[0], bound, drift, when, drift <= bound))
-    bounded_ok, bounded_line = True, None
-    if bounded:
-        bounded_ok, bounded_line = _no_drift(H, t)
-    failed = sum(not row[-1] for row in rows) + (bounded and not bounded_ok)
-    if not failed:
-        return drifts
-
     total = len(rows) + bounded
     scale = "max(1, |Q(t_0)|)" if relative else "1"
     lines = [
@@ -617,7 +704,7 @@ def assert_conserved(
             )
     if bounded_line is not None:
         lines.append(bounded_line)
-    raise AssertionError("\n".join(lines))
+    return "\n".join(lines)
 
 
 def _bound(value: object, name: str) -> float:

@@ -36,7 +36,7 @@ no :math:`(sn)^2` factorisation.
 With :math:`s + 1` Lobatto points the Galerkin method is not the Lobatto IIIA–IIIB
 pair of :math:`s + 1` stages for a mass matrix that varies (its velocity is a
 polynomial of degree :math:`s - 1`, the pair's stage velocities carry one more degree
-of freedom; measured on the double pendulum, the maps differ by 5e-8 after one step of
+of freedom; on the double pendulum the maps differ by 5e-8 after one step of
 h = 0.02, where they agree to round-off for a constant mass): Lobatto methods keep the
 Newton loop there.
 
@@ -107,9 +107,8 @@ def has_velocity_stages(method: Galerkin) -> bool:
 
 
 #: the varying-mass loop is chosen from this degree on: below, Newton's Jacobian is
-#: small (s n = 4 unknowns on the double pendulum) and simplified Newton was
-#: faster at every step size measured (whole runs, Gauss(2): 0.68-0.76 of the fixed
-#: point's time at h = 0.4 ... 0.02)
+#: small (s n = 4 unknowns on the double pendulum) and simplified Newton takes less
+#: time at every step size (docs/performance.md, "Measurements behind design choices")
 MIN_FIXED_POINT_DEGREE = 3
 
 

@@ -47,8 +47,8 @@ def analysis_key(*parts: Any) -> str:
 
     SymPy pickles an expression as its class and canonically ordered arguments
     (symbols with their names and assumptions): the bytes are the same in every
-    process, whatever the hash seed, and 40 times faster to make than ``srepr``
-    (1 ms against 29 ms for the Lagrangian of a 60-mass chain). A part that does
+    process, whatever the hash seed, and tens of times cheaper to make than
+    ``srepr`` (docs/performance.md, "Measurements behind design choices"). A part that does
     not pickle is hashed by ``srepr``.
     """
     h = hashlib.sha256()

@@ -199,7 +199,7 @@ def outer_solar_system(t_final: float = 200_000.0) -> Problem:
 
     No exact solution: the reference is :func:`ode_reference`. Over the
     default span it is expensive: about 35 000 right-hand-side calls (each a
-    Hessian evaluation and an 18-by-18 solve), 14 s measured; short spans
+    Hessian evaluation and an 18-by-18 solve), about 14 s; short spans
     (a few thousand days) take well under a second.
 
     References

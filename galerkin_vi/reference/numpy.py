@@ -177,7 +177,12 @@ def integrate(
     iterations_out: NDArray,
     iteration_total: NDArray,
 ) -> tuple[int, int, int, float, float]:
-    """Same contract as the compiled ``integrate_kernel`` (see loops.general)."""
+    """Same contract as the compiled :func:`galerkin_vi.loops.general.general_loop`.
+
+    The system and the method tables take the place of the loop's point-function
+    addresses and structure arguments; the outputs are written in place and the
+    returned (status, steps done, rows saved, worst, increment) are the loop's.
+    """
     d, E = tables.d, tables.extrapolation
     s = d.size - 1
     C = d[:, None] * h * v0[None, :]

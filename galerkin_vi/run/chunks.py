@@ -1,8 +1,8 @@
 """Long runs in chunks: a progress bar, Ctrl-C that stops a compiled run, terminal events.
 
 A compiled loop does not return to Python until it is done, so a
-KeyboardInterrupt waits for its end (a user pressed Ctrl-C at 8 s of a
-5e7-step run; it took effect at 83.6 s and the result was lost). A run of more
+KeyboardInterrupt waits for its end, a minute or more for a long run, and the
+states computed so far would be lost with it. A run of more
 than ``FIRST_CHUNK`` steps therefore goes in chunks: between them Python
 updates the progress bar, sees Ctrl-C (which ends the run with the states of
 the chunks completed, status ``INTERRUPTED``) and asks whether a terminal event
@@ -11,7 +11,7 @@ has occurred (which ends it too: the steps after the event are not computed).
 The chunks' sizes depend on the number of coordinates only, never on a clock,
 so that a run's result does not depend on the machine's load: ``CHUNK_WORK``
 coordinate-steps per chunk (200 000 steps of a pendulum, 2000 of a 100-mass
-chain; about 0.1-0.5 s on the machine that measured it). Each chunk continues
+chain: well under a second, see docs/performance.md). Each chunk continues
 from the state the previous one ended in, like :meth:`Integrator.stream`: the
 result equals one call's up to round-off at the joins (every chunk starts its
 iteration afresh and without the compensation bits of the summed positions).

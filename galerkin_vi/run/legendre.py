@@ -2,9 +2,8 @@ r"""The continuous Legendre transform at one state, through the compiled point f
 
 Every :meth:`Integrator.integrate` call starts from :math:`p_0 = L_v(t_0, q_0,
 v_0)` (or the velocities of given momenta) and checks that :math:`L_{vv}` is
-regular there. Evaluated with the NumPy expressions of the system, these cost
-about 170 µs a call, most of a short run: a work-precision sweep of
-Hénon–Heiles reaches 1e-8 in 270 µs of which 230 µs were this. The system's
+regular there. Evaluated with the NumPy expressions of the system (and the
+regularity test), these would be a large part of a short run. The system's
 compiled Hessian point function (:mod:`galerkin_vi.loops.point`) gives
 :math:`L_v` and :math:`L_{vv}` in one call of a few microseconds, through
 :mod:`ctypes` and the C wrapper numba builds around it.
@@ -12,8 +11,8 @@ compiled Hessian point function (:mod:`galerkin_vi.loops.point`) gives
 Banded systems (chains) keep the second derivatives as the entries of their
 sparsity pattern, in its order; they are scattered into a dense :math:`L_{vv}`
 for the regularity test (:func:`~galerkin_vi.model.system.is_regular`: an SVD up to
-64 coordinates, an LU condition estimate beyond). For a 100-mass chain the
-NumPy expressions took 2 ms a call, this path about 0.1 ms.
+64 coordinates, an LU condition estimate beyond). The numbers behind this choice
+are in docs/performance.md, "Measurements behind design choices".
 """
 
 from __future__ import annotations

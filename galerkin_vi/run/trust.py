@@ -71,7 +71,7 @@ def explosive_row(
         return None
     with np.errstate(all="ignore"):
         # a bound first: no state beyond 1e3 times the initial scale, no explosion
-        # (the full test below cost 60 us per call, a third of a short run's)
+        # (the full test below costs about 60 us per call, a third of a short run)
         if within_growth_bound(q[:1], p[:1], q, p):
             return None
         size = np.maximum(np.max(np.abs(q), axis=1), np.max(np.abs(p), axis=1))

@@ -52,7 +52,7 @@ reference error or the round-off allowance :math:`10 N \varepsilon \max|q|`
 are not used.
 
 **Round-off** is not in the model: a run of :math:`N` steps carries a
-round-off error that grows with :math:`N` (measured on Kepler: up to
+round-off error that grows with :math:`N` (on Kepler: up to
 :math:`5\times10^{-11}` after :math:`7\times10^{4}` steps), so tolerances within a
 few orders of magnitude of :math:`N\varepsilon\max|q|` are not reliably met;
 a ``RuntimeWarning`` says when the aimed-at error is below that estimate for

@@ -20,6 +20,7 @@ from ..errors import ConvergenceError
 from ..integrator import Integrator
 from ..method.galerkin import Galerkin
 from ..model.system import LagrangianSystem
+from ..run.trajectory import Trajectory
 
 __all__ = ["OrderResult", "fit_order", "measure_order"]
 
@@ -181,16 +182,7 @@ def measure_order(
     2.0
     """
     auto = isinstance(step_counts, str)
-    if auto and step_counts != "auto":
-        raise ValueError(f"step_counts must be a sequence of ints or 'auto', got {step_counts!r}")
-    if auto and reference is None:
-        raise ValueError("step_counts='auto' needs a reference solution")
-    if not auto:
-        counts = np.array(sorted(int(n) for n in step_counts), dtype=np.int64)
-        if counts.size < 2 or counts[0] < 1:
-            raise ValueError(
-                f"step_counts needs at least two positive counts, got {list(step_counts)}"
-            )
+    counts = _checked_step_counts(step_counts, reference)
     if not (np.isfinite(t_final) and t_final != 0):
         raise ValueError(f"t_final must be finite and nonzero, got {t_final}")
     if dps is not None:
@@ -201,7 +193,7 @@ def measure_order(
             v0,
             p0,
             t_final,
-            counts if not auto else None,
+            counts,
             reference,
             t0,
             params,
@@ -216,7 +208,7 @@ def measure_order(
     if norm == "max" and not callable(reference):
         raise ValueError("norm='max' needs a callable reference t -> q(t)")
 
-    def run(n_steps: int):
+    def run(n_steps: int) -> Trajectory:
         return integrator.integrate(
             q0,
             v0,
@@ -229,26 +221,8 @@ def measure_order(
             on_failure="raise",
         )
 
-    def final_position(n_steps: int) -> NDArray:
-        return run(n_steps).q[-1]
-
-    if reference is None:
-        fine, finer = final_position(2 * counts[-1]), final_position(4 * counts[-1])
-        ref = finer + (finer - fine) / (2.0**method.order - 1.0)
-    elif callable(reference):
-        ref = np.asarray(reference(t0 + t_final), dtype=float)
-    else:
-        ref = np.asarray(reference, dtype=float)
-    if ref.shape != (system.n,):
-        raise ValueError(f"reference must give shape ({system.n},), got {ref.shape}")
-
-    def error(n_steps: int) -> float:
-        if norm == "max":
-            traj = run(n_steps)
-            exact = np.asarray(reference(traj.t), dtype=float).reshape(traj.q.shape)
-            return float(np.max(np.abs(traj.q - exact)))
-        return float(np.max(np.abs(final_position(n_steps) - ref)))
-
+    ref = _reference_position(run, system.n, method.order, counts, reference, t0 + t_final)
+    error = _error_function(run, reference, ref, norm)
     if auto:
         counts, errors = _probe_window(error, window, method.order)
     else:
@@ -274,6 +248,72 @@ def measure_order(
         mask=mask,
         reference=ref,
     )
+
+
+def _checked_step_counts(
+    step_counts: Sequence[int] | str, reference: object
+) -> NDArray[np.int64] | None:
+    """The step counts sorted, or None for ``"auto"`` (which needs a reference)."""
+    if isinstance(step_counts, str):
+        if step_counts != "auto":
+            raise ValueError(
+                f"step_counts must be a sequence of ints or 'auto', got {step_counts!r}"
+            )
+        if reference is None:
+            raise ValueError("step_counts='auto' needs a reference solution")
+        return None
+    counts = np.array(sorted(int(n) for n in step_counts), dtype=np.int64)
+    if counts.size < 2 or counts[0] < 1:
+        raise ValueError(f"step_counts needs at least two positive counts, got {list(step_counts)}")
+    return counts
+
+
+def _reference_position(
+    run: Callable[[int], Trajectory],
+    n: int,
+    order: int,
+    counts: NDArray[np.int64] | None,
+    reference: Callable[[float], ArrayLike] | ArrayLike | None,
+    t_end: float,
+) -> NDArray[np.float64]:
+    r"""The reference position at ``t_end``, shape (n,).
+
+    Without ``reference``: Richardson extrapolation of the runs with :math:`2N` and
+    :math:`4N` steps (:math:`N` the largest count),
+    :math:`q_{\rm ref} = q_{4N} + (q_{4N} - q_{2N})/(2^p - 1)`.
+    """
+    if reference is None:
+        fine, finer = run(2 * counts[-1]).q[-1], run(4 * counts[-1]).q[-1]
+        ref = finer + (finer - fine) / (2.0**order - 1.0)
+    elif callable(reference):
+        ref = np.asarray(reference(t_end), dtype=float)
+    else:
+        ref = np.asarray(reference, dtype=float)
+    if ref.shape != (n,):
+        raise ValueError(f"reference must give shape ({n},), got {ref.shape}")
+    return ref
+
+
+def _error_function(
+    run: Callable[[int], Trajectory],
+    reference: Callable[[float], ArrayLike] | ArrayLike | None,
+    ref: NDArray[np.float64],
+    norm: str,
+) -> Callable[[int], float]:
+    """The error of a run as a function of its step count, in the max-norm.
+
+    ``norm="final"``: at the final time, against ``ref``; ``norm="max"``: the largest
+    over all step points, against the callable ``reference``.
+    """
+
+    def error(n_steps: int) -> float:
+        if norm == "max":
+            traj = run(n_steps)
+            exact = np.asarray(reference(traj.t), dtype=float).reshape(traj.q.shape)
+            return float(np.max(np.abs(traj.q - exact)))
+        return float(np.max(np.abs(run(n_steps).q[-1] - ref)))
+
+    return error
 
 
 def _probe_window(

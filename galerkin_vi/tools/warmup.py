@@ -98,8 +98,9 @@ def _runs():
     ]
 
 
-#: compile seconds of each run, two processes on a 2-core machine (numba 0.68, measured
-#: 2026-11-26), in the order of :func:`_runs`: the parallel groups are balanced by them
+#: compile seconds of each run, two processes on a 2-core machine (numba 0.68), in the
+#: order of :func:`_runs`: the parallel groups are balanced by them (docs/performance.md
+#: gives the command that measures them)
 RUN_SECONDS = (
     27.0,
     27.0,
