@@ -1,93 +1,44 @@
-r"""Time-adaptive steps that stay symplectic: the Poincaré time transformation.
-
-A fixed step in physical time is as small as the fastest part of an orbit
-needs (the pericentre of an eccentric orbit, a close encounter). Variable steps
-break the symplecticity of the map, and with it the bounded energy error. The
-Poincaré transformation keeps both: for an autonomous :math:`H(q, p)` and a
-step-size function :math:`g(q) > 0`, the Hamiltonian
-
-.. math::
-
-    K(q, p) = g(q)\,\big(H(q, p) - E\big), \qquad E = H(q_0, p_0),
-
-has, on its level set :math:`K = 0`, the same orbits as :math:`H`, traversed in
-a fictitious time :math:`\tau` with :math:`dt/d\tau = g(q)`. A symplectic method
-with fixed steps :math:`\Delta\tau` applied to :math:`K` is a symplectic method
-for :math:`H` with physical steps :math:`\approx g(q)\,\Delta\tau`, and :math:`K`,
-hence :math:`H - E` where :math:`g` is bounded away from 0, stays bounded.
-
-On the Lagrangian side (:math:`w = dq/d\tau`, so :math:`v = w/g`), the Legendre
-transform of :math:`K` is
-
-.. math::
-
-    \tilde L(q, w) = g(q)\,\big[L(q, w/g(q)) + E\big],
-    \qquad \frac{\partial \tilde L}{\partial w} = L_v = p,
-
-so the momenta are the physical ones. Physical time is a further coordinate
-:math:`z`, the clock, with
-
-.. math::
-
-    \hat L(q, z, w, \zeta) = \tilde L(q, w) + \tfrac12\,(\zeta - g(q))^2 .
-
-:math:`z` is cyclic, so its momentum :math:`p_z = \zeta - g` is a Noether
-momentum, which the Galerkin integrator conserves to round-off; it starts at 0,
-so :math:`z' = g` and :math:`z = t` (with Gauss quadrature of :math:`s` points
-the discrete equations of :math:`z` give :math:`\zeta = g` at every quadrature
-point, and :math:`z_{k+1} - z_k = \Delta\tau \sum_i b_i g(q(\tau_k + c_i \Delta\tau))`).
-The extended system is generated and compiled like any other: the general loop
-runs it, one coordinate larger.
-
-References: Hairer, Lubich & Wanner, *Geometric Numerical Integration*, 2nd ed.,
-Springer 2006, section VIII.2; Hairer, "Variable time step integration with
-symplectic methods", Appl. Numer. Math. 25 (1997).
-"""
+"""The adaptive integrator: fixed steps in fictitious time of the Poincaré-transformed
+system (:mod:`.transform`), reported in physical time (:mod:`.physical`)."""
 
 from __future__ import annotations
 
 import math
 import numbers
 import os
-import sys
-import time
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
-from dataclasses import dataclass, field, replace
-from functools import cached_property
+from dataclasses import replace
 
 import numpy as np
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import ConvergenceError, RunFailureWarning
-from .integrator import Integrator
-from .method.galerkin import Galerkin
-from .model.system import LagrangianSystem
-from .run.chunks import PROGRESS_AFTER
-from .run.dense import hermite
-from .run.ensemble import Ensemble, member_parameters, member_starts
-from .run.events import (
-    Event,
-    apply_events,
-    as_events,
-    event_function,
-    locate_events,
-    terminal_stop,
+from ..errors import ConvergenceError, RunFailureWarning
+from ..integrator import Integrator
+from ..method.galerkin import Galerkin
+from ..model.system import LagrangianSystem
+from ..run.ensemble import Ensemble, member_parameters, member_starts
+from ..run.events import apply_events, locate_events, terminal_stop
+from ..run.failures import check_failure_mode, failed_run
+from ..run.plan import requested_times, state_vector
+from ..run.status import RunStatus
+from ..run.trajectory import Trajectory
+from .physical import (
+    OutputRequest,
+    ProgressBar,
+    fictitious_step,
+    fictitious_times,
+    physical_span,
+    rows_at,
+    save_interval,
 )
-from .run.failures import check_failure_mode, failed_run
-from .run.outputs import at_times
-from .run.plan import requested_times, state_vector
-from .run.status import RunStatus
-from .run.trajectory import Trajectory
+from .rows import ExtendedRows
+from .trajectory import AdaptiveTrajectory
+from .transform import ENERGY, PoincareTransform
 
-__all__ = ["AdaptiveIntegrator", "AdaptiveTrajectory", "PoincareTransform", "encounter_scaling"]
-
-#: the extended system's own symbols; names no user model is likely to use
-CLOCK = sp.Symbol("t_clock")
-CLOCK_RATE = sp.Symbol("t_clock_rate")
-ENERGY = sp.Symbol("E_poincare")
+__all__ = ["AdaptiveIntegrator", "adaptive_block"]
 
 #: steps of the first chunk of a run to a final time, before the rate dt/dtau is known
 _FIRST_CHUNK = 256
@@ -96,114 +47,6 @@ _MAX_CHUNK = 1_000_000
 _WATCHED_CHUNK = 4096
 #: secant iterations placing the last step on the final time
 _LANDING_ITERATIONS = 20
-
-
-def encounter_scaling(distances: Sequence[sp.Expr], alpha: float = 1.5) -> sp.Expr:
-    r"""A step-size function for close encounters: :math:`g = (\sum_j d_j^{-\alpha})^{-1}`.
-
-    For one distance this is :math:`d^\alpha`; for several it is at most the
-    smallest :math:`d_j^\alpha` and close to it when one distance is much smaller
-    than the others, and smooth (a minimum is not). :math:`\alpha = 3/2` matches
-    the time scale of a Kepler orbit at distance :math:`d` (Kepler's third law:
-    steps of equal fictitious time are about equal fractions of the local
-    orbital period); :math:`\alpha = 1` is Sundman's transformation.
-
-    Parameters
-    ----------
-    distances : sequence of sympy.Expr
-        Positive expressions in q, e.g. ``sp.sqrt(x**2 + y**2)``.
-    alpha : float
-        Positive exponent.
-    """
-    if isinstance(distances, sp.Expr):
-        distances = [distances]
-    distances = list(distances)
-    if not distances:
-        raise ValueError("distances must contain at least one expression")
-    if not (isinstance(alpha, numbers.Real) and math.isfinite(alpha) and alpha > 0):
-        raise ValueError(f"alpha must be a positive real number, got {alpha!r}")
-    a = sp.nsimplify(alpha)
-    if len(distances) == 1:
-        return sp.sympify(distances[0]) ** a
-    return 1 / sum(sp.sympify(d) ** (-a) for d in distances)
-
-
-@dataclass(frozen=True)
-class PoincareTransform:
-    r"""The extended Lagrangian :math:`\hat L` of a system and a step-size function.
-
-    Parameters
-    ----------
-    system : LagrangianSystem
-        An autonomous system without constraints or forces.
-    g : sympy.Expr
-        The step-size function :math:`g(q) > 0` (physical time per unit of
-        fictitious time), an expression in the system's q and parameters.
-
-    Attributes
-    ----------
-    extended : LagrangianSystem
-        :math:`\hat L` in coordinates ``(*system.q, t_clock)``, parameters
-        ``(*system.params, E_poincare)``.
-    """
-
-    system: LagrangianSystem
-    g: sp.Expr
-    extended: LagrangianSystem = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        system, g = self.system, self.g
-        if not isinstance(system, LagrangianSystem):
-            raise TypeError(f"system must be a LagrangianSystem, got {type(system).__name__}")
-        if system.t is not None:
-            raise ValueError(
-                "the Poincaré time transformation needs an autonomous system (t=None): "
-                "with time in L the energy E of K = g (H - E) is not conserved"
-            )
-        if system.constraints is not None or system.forces is not None:
-            raise ValueError(
-                "the Poincaré time transformation is implemented for systems without "
-                "constraints or forces"
-            )
-        if system.contacts:
-            raise ValueError(
-                "the Poincaré time transformation keeps the energy E of K = g (H - E) "
-                "fixed, and an impact with restitution e < 1 or friction changes H: "
-                "integrate a system with contacts with Integrator (fixed steps, impacts "
-                "located at the method's order)"
-            )
-        if isinstance(g, numbers.Real):
-            g = sp.sympify(g)
-        if not isinstance(g, sp.Expr):
-            raise TypeError(f"g must be a SymPy expression in q, got {type(g).__name__}")
-        allowed = set(system.q) | set(system.params)
-        stray = g.free_symbols - allowed
-        if stray:
-            names = ", ".join(sorted(str(s) for s in stray))
-            raise ValueError(f"g may depend on q and the parameters only; it contains {names}")
-        own = {CLOCK, CLOCK_RATE, ENERGY}
-        taken = own & (set(system.q) | set(system.v) | set(system.params))
-        if taken:
-            raise ValueError(f"the system uses the reserved symbols {sorted(map(str, taken))}")
-        w = system.v
-        L_tilde = g * (system.L.xreplace({v: v / g for v in w}) + ENERGY)
-        L_hat = L_tilde + (CLOCK_RATE - g) ** 2 / 2
-        params = dict(zip(system.params, system.param_defaults, strict=True))
-        params[ENERGY] = 0.0
-        extended = LagrangianSystem(L_hat, [*system.q, CLOCK], [*w, CLOCK_RATE], params=params)
-        object.__setattr__(self, "g", g)
-        object.__setattr__(self, "extended", extended)
-
-    @cached_property
-    def _g_numeric(self):
-        return sp.lambdify([self.system.q, self.system.params], self.g, modules="numpy")
-
-    def rate(self, q: ArrayLike, params: NDArray | None = None) -> NDArray:
-        """:math:`g(q)`, the physical time per unit of fictitious time (rows of q)."""
-        q = np.asarray(q, dtype=float)
-        prm = self.system.param_defaults if params is None else params
-        value = self._g_numeric(np.moveaxis(q, -1, 0), prm)
-        return np.broadcast_to(np.asarray(value, dtype=float), q.shape[:-1]).copy()
 
 
 class AdaptiveIntegrator:
@@ -412,12 +255,12 @@ class AdaptiveIntegrator:
                 "project=True needs a system with constraints; the Poincaré time "
                 "transformation applies to systems without them"
             )
-        h = _fictitious_step(h)
-        t0, t_final = _physical_span(t_span, t0, t_final, n_steps, h)
-        save_every = _save_interval(save_every)
+        h = fictitious_step(h)
+        t0, t_final = physical_span(t_span, t0, t_final, n_steps, h)
+        save_every = save_interval(save_every)
         if progress is not None and not isinstance(progress, bool):
             raise TypeError(f"progress must be True, False or None, got {progress!r}")
-        outputs = _Outputs.of(self.system, dense_output, events, t_eval, t0, t_final, h)
+        outputs = OutputRequest.of(self.system, dense_output, events, t_eval, t0, t_final, h)
         if outputs.dense and save_every != 1:
             what = "events are located" if outputs.events else "dense output interpolates"
             raise ValueError(
@@ -537,7 +380,7 @@ class AdaptiveIntegrator:
         t : float
             The physical time after the step.
         """
-        h = _fictitious_step(h)
+        h = fictitious_step(h)
         qh, ph, extended_params, _ = self._start(q0, None, p0, t0, params)
         if energy is not None:
             if not (isinstance(energy, numbers.Real) and math.isfinite(energy)):
@@ -570,18 +413,18 @@ class AdaptiveIntegrator:
 
     def _run_chunks(
         self, qh, ph, h, n_steps, t_final, params, save_every, stop, progress
-    ) -> tuple[_Rows, bool]:
+    ) -> tuple[ExtendedRows, bool]:
         """Chunks of steps until ``n_steps``, a terminal event, or the clock passes
         ``t_final`` (then a landing step); the rows, and whether Ctrl-C ended the run.
 
         Steps past ``t_final`` in the last chunk are computed and dropped (their
         iterations still count in ``total_newton_iterations``: they were work).
         """
-        rows = _Rows.start(qh, ph)
+        rows = ExtendedRows.start(qh, ph)
         direction = 1.0 if h > 0 else -1.0
         largest = _MAX_CHUNK if stop is None else _WATCHED_CHUNK
         chunk = _FIRST_CHUNK if n_steps is None else min(_FIRST_CHUNK, n_steps)
-        bar = _Bar(progress, abs(t_final - float(qh[-1])) if n_steps is None else n_steps)
+        bar = ProgressBar(progress, abs(t_final - float(qh[-1])) if n_steps is None else n_steps)
         interrupted = landing = False
         try:
             while chunk > 0:
@@ -611,7 +454,9 @@ class AdaptiveIntegrator:
             bar.close()
         return rows, interrupted
 
-    def _chunk(self, rows: _Rows, h: float, steps: int, params, save_every: int) -> Trajectory:
+    def _chunk(
+        self, rows: ExtendedRows, h: float, steps: int, params, save_every: int
+    ) -> Trajectory:
         """``steps`` steps from the last row; a failure raised with the rows so far as
         its ``.partial`` (the failing chunk's good steps included)."""
         try:
@@ -636,7 +481,7 @@ class AdaptiveIntegrator:
         return run
 
     @staticmethod
-    def _next_chunk(rows: _Rows, h: float, n_steps, t_final, largest: int) -> int:
+    def _next_chunk(rows: ExtendedRows, h: float, n_steps, t_final, largest: int) -> int:
         """Steps of the next chunk: what is left of ``n_steps``, or a prediction of the
         steps to ``t_final`` from the run's mean dt/dtau.
 
@@ -652,7 +497,7 @@ class AdaptiveIntegrator:
         need = (t_final - float(rows.last_q[-1])) / (rate * h) if rate > 0 else _FIRST_CHUNK
         return int(min(largest, 4 * done, max(_FIRST_CHUNK, 0.5 * need + 16)))
 
-    def _land(self, rows: _Rows, h: float, t_final: float, params) -> None:
+    def _land(self, rows: ExtendedRows, h: float, t_final: float, params) -> None:
         """Append one step of size in (0, h] whose clock lands on ``t_final``."""
         run, work = self._landing(rows.last_q, rows.last_p, rows.last_tau, h, t_final, params)
         rows.work += work
@@ -724,7 +569,7 @@ class AdaptiveIntegrator:
 
     # ------------------------------------------------------------ outputs
     def _with_outputs(
-        self, traj: AdaptiveTrajectory, outputs: _Outputs, params
+        self, traj: AdaptiveTrajectory, outputs: OutputRequest, params
     ) -> AdaptiveTrajectory:
         """``traj`` with its dense output, events and rows at ``t_eval``, as asked."""
         if not outputs.dense:
@@ -740,10 +585,10 @@ class AdaptiveIntegrator:
             if outputs.t_final is None and traj.status == RunStatus.COMPLETED:
                 # a run of n_steps: its span is known now
                 times = requested_times(times, float(traj.t[0]), float(traj.t[-1]), outputs.h)
-            traj = _rows_at(traj, full, times, self.transform.rate(full.q, full.params))
+            traj = rows_at(traj, full, times, self.transform.rate(full.q, full.params))
         return traj
 
-    def _with_events(self, traj: AdaptiveTrajectory, outputs: _Outputs, params):
+    def _with_events(self, traj: AdaptiveTrajectory, outputs: OutputRequest, params):
         """``traj`` with its events located in physical time, cut at the first terminal one."""
         system, prm = self.system, traj.params
         prm_map = dict(zip(system.params, prm, strict=True))
@@ -767,7 +612,7 @@ class AdaptiveIntegrator:
             return cut
         k = len(cut.t) - 2  # the event lies in (t_k, t_k+1] of traj
         rates = self.transform.rate(traj.q[k : k + 2], prm)
-        tau_event = _fictitious_times(traj.t[k : k + 2], traj.tau[k : k + 2], rates, cut.t[-1:])
+        tau_event = fictitious_times(traj.t[k : k + 2], traj.tau[k : k + 2], rates, cut.t[-1:])
         return replace(
             cut,
             tau=np.append(traj.tau[: k + 1], tau_event),
@@ -789,221 +634,6 @@ class AdaptiveIntegrator:
             f"{message} .partial holds the states before it in physical time.",
             step=exc.step, t=t, residual=exc.residual, partial=partial,
         )  # fmt: skip
-
-
-@dataclass
-class _Rows:
-    """The states of a run assembled from several integrations (save_every = 1).
-
-    Kept as the runs' own arrays, joined once at the end: a list of rows, one
-    array object per state, cost more than the steps of a short run.
-    """
-
-    tau: list[NDArray[np.float64]]
-    q: list[NDArray[np.float64]]
-    p: list[NDArray[np.float64]]
-    iterations: list[NDArray]
-    steps: int = 0
-    work: int = 0
-    worst: float = 0.0
-
-    @classmethod
-    def start(cls, q: NDArray, p: NDArray) -> _Rows:
-        return cls(tau=[np.zeros(1)], q=[np.array(q, float)[None, :]],
-                   p=[np.array(p, float)[None, :]], iterations=[])  # fmt: skip
-
-    @property
-    def last_q(self) -> NDArray[np.float64]:
-        return self.q[-1][-1]
-
-    @property
-    def last_p(self) -> NDArray[np.float64]:
-        return self.p[-1][-1]
-
-    @property
-    def last_tau(self) -> float:
-        return float(self.tau[-1][-1])
-
-    @property
-    def first_clock(self) -> float:
-        return float(self.q[0][0, -1])
-
-    def extend(self, run: Trajectory, steps: int) -> None:
-        """Append the states after the first ``steps`` steps of ``run``."""
-        if steps <= 0:
-            return
-        self.tau.append(run.t[1 : steps + 1].copy())
-        self.q.append(run.q[1 : steps + 1].copy())
-        self.p.append(run.p[1 : steps + 1].copy())
-        self.iterations.append(run.newton_iterations[:steps])
-        self.steps += steps
-
-    def trajectory(self, system: LagrangianSystem, save_every: int) -> Trajectory:
-        steps = self.steps
-        keep = np.unique(np.append(np.arange(0, steps + 1, save_every), steps))
-        its = np.concatenate(self.iterations).astype(np.uint8) if self.iterations else np.zeros(0)
-        groups = np.arange(0, steps, save_every)
-        largest = np.maximum.reduceat(its, groups) if steps else its
-        return Trajectory(
-            t=np.concatenate(self.tau)[keep],
-            q=np.concatenate(self.q)[keep],
-            p=np.concatenate(self.p)[keep],
-            newton_iterations=largest.astype(np.uint8),
-            max_residual=self.worst,
-            system=system,
-            params=np.zeros(0),
-            total_newton_iterations=self.work,
-            n_steps=steps,
-        )
-
-
-@dataclass(frozen=True, eq=False)
-class AdaptiveTrajectory(Trajectory):
-    r"""A :class:`Trajectory` at physical times that are not equally spaced.
-
-    Attributes
-    ----------
-    tau : ndarray, shape (N,)
-        The fictitious times of the saved states (equally spaced but for a
-        landing step on ``t_final``; at a terminal event and at the rows of
-        ``t_eval``, interpolated).
-    clock_momentum : ndarray, shape (N,)
-        :math:`p_z = \zeta - g`, 0 in exact arithmetic; its size is the
-        round-off of the clock's Noether momentum.
-    """
-
-    tau: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    clock_momentum: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-
-    @property
-    def step_sizes(self) -> NDArray[np.float64]:
-        """Physical time between consecutive saved states."""
-        return np.diff(self.t)
-
-
-# ---------------------------------------------------------------- run arguments and outputs
-def _fictitious_step(h: object) -> float:
-    """``h`` checked: a finite nonzero real number (negative runs backwards)."""
-    if isinstance(h, bool) or not (isinstance(h, numbers.Real) and math.isfinite(h) and h != 0):
-        raise ValueError(f"h must be a finite, nonzero fictitious step, got {h!r}")
-    return float(h)
-
-
-def _save_interval(save_every: object) -> int:
-    if isinstance(save_every, bool) or not isinstance(save_every, numbers.Integral):
-        raise ValueError(f"save_every must be a positive int, got {save_every!r}")
-    if save_every < 1:
-        raise ValueError(f"save_every must be a positive int, got {save_every!r}")
-    return int(save_every)
-
-
-def _physical_span(t_span, t0, t_final, n_steps, h: float) -> tuple[float, float | None]:
-    """(t0, t_final) of a run, ``t_span`` resolved and checked against the direction of h."""
-    if t_span is not None:
-        if t_final is not None or n_steps is not None:
-            raise ValueError("give t_span, or one of n_steps and t_final, not both")
-        try:
-            start, end = (float(x) for x in t_span)
-        except (TypeError, ValueError):
-            raise ValueError(f"t_span must be two numbers (t0, t_final), got {t_span!r}") from None
-        if t0 != 0.0 and t0 != start:
-            raise ValueError(f"t0 = {t0} and t_span = {t_span!r} disagree: give t_span only")
-        t0, t_final = start, end
-    if (n_steps is None) == (t_final is None):
-        raise ValueError("give exactly one of n_steps and t_final (or t_span)")
-    if not (isinstance(t0, numbers.Real) and math.isfinite(t0)):
-        raise ValueError(f"t0 must be a finite real number, got {t0!r}")
-    if t_final is None:
-        return float(t0), None
-    if not (isinstance(t_final, numbers.Real) and math.isfinite(t_final)):
-        raise ValueError(f"t_final must be a finite real number, got {t_final!r}")
-    if h > 0 and t_final <= t0:
-        raise ValueError(
-            f"t_final must be after t0 = {t0} for h > 0 (physical time runs with the "
-            f"fictitious one), got {t_final!r}; a negative h runs backwards"
-        )
-    if h < 0 and t_final >= t0:
-        raise ValueError(
-            f"t_final must be before t0 = {t0} for h < 0 (the run goes backwards in "
-            f"physical time), got {t_final!r}"
-        )
-    return float(t0), float(t_final)
-
-
-@dataclass(frozen=True)
-class _Outputs:
-    """What a run returns besides its states: dense output, events, rows at ``t_eval``."""
-
-    dense: bool
-    events: list[Event]
-    functions: list[Callable]
-    times: NDArray[np.float64] | None
-    t_final: float | None
-    h: float
-
-    @classmethod
-    def of(cls, system, dense_output, events, t_eval, t0, t_final, h) -> _Outputs:
-        if not isinstance(dense_output, bool):
-            raise TypeError(f"dense_output must be True or False, got {dense_output!r}")
-        event_list = as_events(events)
-        functions = [event_function(e, system) for e in event_list]
-        times = requested_times(t_eval, t0, t_final, h)
-        dense = dense_output or bool(event_list) or times is not None
-        return cls(dense, event_list, functions, times, t_final, h)
-
-
-def _intervals(t: NDArray, times: NDArray) -> NDArray[np.int64]:
-    """The interval k of the run's nodes ``t`` (forwards or backwards) holding each time:
-    ``times`` between ``t[k]`` and ``t[k + 1]``."""
-    forward = t[-1] >= t[0]
-    nodes = t if forward else t[::-1]
-    k = np.clip(np.searchsorted(nodes, times, side="right") - 1, 0, len(t) - 2)
-    return k if forward else len(t) - 2 - k
-
-
-def _fictitious_times(t: NDArray, tau: NDArray, rates: NDArray, times: NDArray) -> NDArray:
-    r""":math:`\tau` at physical ``times``: cubic Hermite in the interval of each, through
-    :math:`(t_k, \tau_k)` with slopes :math:`d\tau/dt = 1/g(q_k)`."""
-    pair = _intervals(t, times)[:, None] + np.arange(2)
-    value, _ = hermite(t[pair], tau[pair][..., None], (1.0 / rates)[pair][..., None], times)
-    return value[:, 0]
-
-
-def _rows_at(traj, full, times: NDArray, rates: NDArray):
-    """``traj`` at ``times`` from ``full``'s dense output (``tau`` interpolated too)."""
-    rows = at_times(traj, times)
-    tau = _fictitious_times(full.t, full.tau, rates, rows.t)
-    # p_z is constant to round-off: the value at the interval's first node
-    momentum = full.clock_momentum[_intervals(full.t, rows.t)]
-    return replace(rows, tau=tau, clock_momentum=momentum)
-
-
-class _Bar:
-    """A tqdm bar of a chunked run: always, never, or (None) when the first chunk predicts
-    more than ``PROGRESS_AFTER`` seconds and stderr is a terminal."""
-
-    def __init__(self, progress: bool | None, total: float) -> None:
-        self.progress, self.total = progress, float(total)
-        self.start = time.perf_counter()
-        self.bar = None
-        self.shown = 0.0
-
-    def update(self, done: float) -> None:
-        if self.bar is None and self.progress is not False and done > 0:
-            elapsed = time.perf_counter() - self.start
-            predicted = elapsed * (self.total / done - 1.0)
-            if self.progress or (predicted > PROGRESS_AFTER and sys.stderr.isatty()):
-                from tqdm.auto import tqdm
-
-                self.bar = tqdm(total=self.total, leave=False)
-            self.progress = self.bar is not None
-        if self.bar is not None:
-            self.bar.update(min(done, self.total) - self.shown)
-            self.shown = min(done, self.total)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
 
 
 def adaptive_block(spec: tuple, q0s, name: str, x, params: Sequence, run: dict) -> list:
