@@ -735,11 +735,6 @@ class Integrator:
         if path == "explicit":
             return run_explicit(system, self._summary, self._loop_arguments, run, out.arrays)
         loop, before, after = self._loop_call()
-        if path == "linear":
-            status, done, saved = loop(*before, *run, *after, *out.arrays)
-            out.iterations[: -(-done // run[6])] = 1
-            out.iteration_total[0] = done
-            return status, done, saved, 0.0, np.nan
         result = loop(*before, *run, *after, *out.arrays, *counters)
         if path == "varying_mass" and result[0] != 0:
             return self._newton_from_last_row(run, out, result)
@@ -788,7 +783,7 @@ class Integrator:
     def _loop_call(self) -> tuple:
         """(loop, before, after) of an implicit compiled path: the loop is called as
         ``loop(*before, q0, p0, v0, t0, h, n_steps, save_every, prm, *after, t, q, p,
-        turns[, iterations, iteration_total])``.
+        turns, iterations, iteration_total)`` (:mod:`galerkin_vi.loops.abi`).
 
         ``before`` may hold work space of the loop (the stage form's diagonal mass):
         a new one per call, so that threads running the loop at once do not share it.
@@ -1232,11 +1227,10 @@ def run_explicit(system, spec, model, run, arrays) -> tuple:
     from .loops import explicit_loop
 
     time_dependent = None if spec.autonomous else True  # a switch: see loops.traits
-    status, done, saved = explicit_loop(
+    return explicit_loop(
         fn, periodic, time_dependent, q0, p0, t0, h, n_steps, save_every, prm, inverse,
         diagonal, *arrays,
     )  # fmt: skip
-    return status, done, saved, 0.0, np.nan
 
 
 def _warn_if_unstable(traj: Trajectory, h: float) -> None:
