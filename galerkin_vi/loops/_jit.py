@@ -250,9 +250,10 @@ def _numba_originals() -> _Originals | None:
         postproc_run=getattr(postproc.PostProcessor, "run", None),
         get_block_entry_vars=getattr(ir.FunctionIR, "get_block_entry_vars", None),
     )
-    if None in (
-        originals.inline_ir, originals.postproc_run, originals.get_block_entry_vars
-    ) or originals.inliner_copy is not copy:
+    if (
+        None in (originals.inline_ir, originals.postproc_run, originals.get_block_entry_vars)
+        or originals.inliner_copy is not copy
+    ):
         return None
     if not all(hasattr(postproc, name) for name in ("transforms", "VariableLifetime")):
         return None

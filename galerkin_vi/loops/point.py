@@ -71,6 +71,7 @@ __all__ = [
     "point_mass_row",
 ]
 
+
 def _check_arrays(arrays) -> None:
     for array in arrays:
         if not (
