@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..cache import atomic_write, cache_root, discard_unreadable
+from .slots import POINT_SLOTS
 from .source import render_module
 from .spec import KernelSpec, signature
 
@@ -41,16 +42,6 @@ __all__ = [
     "read_entry",
 ]
 
-_SLOTS = {
-    "point_gradient": 0,
-    "point_hessian": 1,
-    "lagrangian": 2,
-    "point_constraint": 3,
-    "point_constraint_jacobian": 4,
-    "point_constraint_rate": 5,
-    "point_constraint_hessian": 6,
-    "point_mass": 7,
-}
 _LOCK = threading.Lock()
 # compiled point functions stay alive while the process runs: loops hold their addresses
 _LOADED: dict[str, PointFunctions] = {}
@@ -113,13 +104,13 @@ class PointFunctions:
         return entry_path(self.key).read_text()
 
     def addresses(self, names: tuple[str, ...]) -> NDArray[np.int64]:
-        """Addresses of the slots of :mod:`galerkin_vi.loops.point`, compiling ``names``.
+        """Addresses in the slots of :data:`POINT_SLOTS`, compiling ``names``.
 
         Slots of functions not asked for (nor compiled before) hold 0.
         """
         from numba import cfunc
 
-        from ..loops import _jit  # noqa: F401 - numba's cache locator of the point functions
+        from .. import loops  # noqa: F401 - registers the cache locator of the point functions
 
         signatures = _c_signatures()
         with _LOCK:
@@ -129,9 +120,9 @@ class PointFunctions:
                     self.compiled[name] = cfunc(signatures[name], cache=True, error_model="numpy")(
                         function
                     )
-        out = np.zeros(len(_SLOTS), dtype=np.int64)
+        out = np.zeros(len(POINT_SLOTS), dtype=np.int64)
         for name, compiled in self.compiled.items():
-            out[_SLOTS[name]] = _body_address(compiled)
+            out[POINT_SLOTS[name]] = _body_address(compiled)
         return out
 
 

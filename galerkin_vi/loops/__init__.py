@@ -13,12 +13,15 @@ A loop's arguments never name a system: the point functions arrive as
 addresses in an int64 array, the structure as ``traits``, ``pattern`` and
 ``periodic``, the method as its tables. So numba compiles each loop once per
 machine and argument types and caches it (:mod:`._jit` says where);
-:mod:`.warmup` compiles all of them ahead of use.
+:mod:`galerkin_vi.tools.warmup` compiles all of them ahead of use, inside
+:func:`compiling` (numba's compiler made faster for them, for that time only).
+:mod:`.abi` writes down the calling convention every loop follows.
 """
 
 from __future__ import annotations
 
-from ._jit import loop_cache_dir  # registers the cache locator before any loop is defined
+# registers the cache locators before any loop is defined
+from ._jit import compiling, discard_unreadable_loops, loop_cache_dir
 from .constrained import constrained_loop
 from .explicit import explicit_loop
 from .general import general_loop
@@ -27,7 +30,9 @@ from .stage_form import stage_form_loop
 from .varying_mass import varying_mass_loop
 
 __all__ = [
+    "compiling",
     "constrained_loop",
+    "discard_unreadable_loops",
     "explicit_loop",
     "general_loop",
     "linear_loop",

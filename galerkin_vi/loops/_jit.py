@@ -1,11 +1,11 @@
-"""The two decorators of the loops and where numba caches what they compile.
+"""The two decorators of the loops, where numba caches what they compile, and how.
 
 ``kernel`` marks a helper: inlined (in numba's IR) into every loop that
-calls it, never compiled on its own; measured, plain calls between compiled
-functions (numba's reference counting at each call) made the stage form 2x
-slower per step, while halving the compile time. ``driver`` marks a loop's
-entry point: compiled once per machine and argument types and cached on disk
-by numba.
+calls it, never compiled on its own: plain calls between compiled functions
+pay numba's reference counting at each call, a large share of a small
+system's step, which outweighs the longer compile time of inlined code.
+``driver`` marks a loop's entry point: compiled once per machine and argument
+types and cached on disk by numba.
 
 numba would cache a driver beside its source file, and judge staleness by that
 file alone; a driver inlines helpers from several modules, so an edit to one
@@ -13,12 +13,23 @@ of them would go unnoticed. :class:`LoopCacheLocator` puts the cache of every
 driver under :func:`galerkin_vi.cache.cache_root` in a folder named after a
 hash of all loop sources (and numba's and Python's versions): any edit, or a
 new package version, starts a fresh folder.
+
+:func:`compiling` makes numba's compiler faster on the loops' large inlined IR
+(two replacements of numba's internals). It is a context manager, entered only
+while the package compiles its own loops (the warm-up processes of
+:mod:`galerkin_vi.tools.warmup`): importing the package leaves numba as it is,
+and the user's own numba code never compiles through these replacements.
 """
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 
@@ -31,6 +42,8 @@ from ..cache import cache_root, discard_unreadable
 __all__ = [
     "LoopCacheLocator",
     "PointCacheLocator",
+    "compiling",
+    "discard_unreadable_loops",
     "driver",
     "kernel",
     "loop_cache_dir",
@@ -38,8 +51,8 @@ __all__ = [
 ]
 
 _PACKAGE = Path(__file__).resolve().parent.parent
-# every source a compiled loop is made of
-_SOURCES = ("newton.py", "loops")
+# every source a compiled loop is made of (the slot table: its numbers are compiled in)
+_SOURCES = ("newton.py", "loops", "codegen/slots.py")
 
 
 @cache
@@ -128,6 +141,18 @@ def _register_locators() -> None:
 _register_locators()
 
 
+@cache
+def discard_unreadable_loops() -> list[Path]:
+    """Delete the loops' cache files that cannot be read back; once per process.
+
+    A truncated index or data file (a killed writer, a full disk) would make
+    numba raise instead of compiling again. Called where the loops are first
+    made ready (:func:`galerkin_vi.loops.readiness.ensure_loops`), before numba
+    reads the folder.
+    """
+    return discard_unreadable(loop_cache_dir())
+
+
 class _SharedMemoCopy:
     """The ``copy`` module as numba's IR inliner sees it, with one memo per inlining.
 
@@ -136,7 +161,6 @@ class _SharedMemoCopy:
     variable scope that all blocks share: quadratic in the callee's size. Inside
     one ``inline_ir`` call this module's ``deepcopy`` shares one memo, so the
     scope is copied once and the copied blocks share it, as the original ones do.
-    Measured: compiling the stage form 10.5 -> 6.8 s, the general loop 7.1 -> 3.8 s.
     """
 
     def __init__(self, module, state):
@@ -153,21 +177,18 @@ class _SharedMemoCopy:
         return self._module.deepcopy(x, memo)
 
 
-def _share_inliner_memo() -> None:
-    """Install :class:`_SharedMemoCopy` in numba's inliner (skipped if its layout differs)."""
-    import copy
-    import threading
+@dataclass(frozen=True)
+class _Originals:
+    """numba's own attributes that :func:`compiling` replaces, to put back on exit."""
 
-    from numba.core import inline_closurecall
+    inline_ir: object
+    inliner_copy: object
+    postproc_run: object
+    get_block_entry_vars: object
 
-    worker = getattr(inline_closurecall, "InlineWorker", None)
-    inline_ir = getattr(worker, "inline_ir", None)
-    if inline_ir is None or getattr(inline_ir, "_galerkin_vi", False):
-        return
-    if getattr(inline_closurecall, "copy", None) is not copy:
-        return
-    state = threading.local()
-    inline_closurecall.copy = _SharedMemoCopy(copy, state)
+
+def _shared_memo_inline_ir(inline_ir, state):
+    """``InlineWorker.inline_ir`` with one deep-copy memo per call (:class:`_SharedMemoCopy`)."""
 
     def shared_memo_inline_ir(self, *args, **kwargs):
         outer = getattr(state, "memo", None)
@@ -177,36 +198,22 @@ def _share_inliner_memo() -> None:
         finally:
             state.memo = outer
 
-    shared_memo_inline_ir._galerkin_vi = True
-    worker.inline_ir = shared_memo_inline_ir
+    return shared_memo_inline_ir
 
 
-_share_inliner_memo()
-
-
-def _skip_entry_liveness() -> None:
-    """Let numba's IR post-processor skip the block-entry liveness of ordinary functions.
+def _lean_postproc(run, get):
+    """``PostProcessor.run`` and ``FunctionIR.get_block_entry_vars`` with liveness on demand.
 
     ``PostProcessor.run`` runs after every change of a function's IR, and for
     every function it solves two data-flow fixed points for the variables live
     at each block's entry. In nopython mode only generators read that result
     (object-mode lowering reads it too); the loops' inlined IR, thousands of
-    blocks, paid for it after every inlining. Here it is computed for generators
-    as before, and for other functions only when asked for
-    (``FunctionIR.get_block_entry_vars``, from the final blocks). Skipped if
-    numba's layout differs. Measured: `galerkin-vi warmup` from an empty cache
-    130-153 s -> 109-112 s (two alternating rounds, 2-core machine); the stage
-    form's machine code is the same instruction for instruction.
+    blocks, would pay for it after every inlining. Here it is computed for
+    generators as numba does, and for other functions only when asked for
+    (``FunctionIR.get_block_entry_vars``, from the final blocks). The machine
+    code of the loops is the same instruction for instruction.
     """
-    from numba.core import analysis, ir, postproc
-
-    run = getattr(postproc.PostProcessor, "run", None)
-    get = getattr(ir.FunctionIR, "get_block_entry_vars", None)
-    needed = ("transforms", "VariableLifetime")
-    if run is None or get is None or getattr(run, "_galerkin_vi", False):
-        return
-    if not all(hasattr(postproc, name) for name in needed):
-        return
+    from numba.core import analysis, postproc
 
     def lean_run(self, emit_dels: bool = False, extend_lifetimes: bool = False):
         func_ir = self.func_ir
@@ -229,15 +236,84 @@ def _skip_entry_liveness() -> None:
                 self.block_entry_vars[each] = live[offset]
         return get(self, block)
 
-    lean_run._galerkin_vi = True
-    postproc.PostProcessor.run = lean_run
-    ir.FunctionIR.get_block_entry_vars = block_entry_vars_on_demand
+    return lean_run, block_entry_vars_on_demand
 
 
-_skip_entry_liveness()
-# a truncated index or data file (a killed writer, a full disk) would make numba
-# raise instead of compiling again
-discard_unreadable(loop_cache_dir())
+def _numba_originals() -> _Originals | None:
+    """numba's attributes that :func:`compiling` replaces, or None if its layout differs."""
+    from numba.core import inline_closurecall, ir, postproc
+
+    worker = getattr(inline_closurecall, "InlineWorker", None)
+    originals = _Originals(
+        inline_ir=getattr(worker, "inline_ir", None),
+        inliner_copy=getattr(inline_closurecall, "copy", None),
+        postproc_run=getattr(postproc.PostProcessor, "run", None),
+        get_block_entry_vars=getattr(ir.FunctionIR, "get_block_entry_vars", None),
+    )
+    if (
+        None in (originals.inline_ir, originals.postproc_run, originals.get_block_entry_vars)
+        or originals.inliner_copy is not copy
+    ):
+        return None
+    if not all(hasattr(postproc, name) for name in ("transforms", "VariableLifetime")):
+        return None
+    return originals
+
+
+def _install(originals: _Originals) -> None:
+    from numba.core import inline_closurecall, ir, postproc
+
+    state = threading.local()
+    inline_closurecall.copy = _SharedMemoCopy(copy, state)
+    inline_closurecall.InlineWorker.inline_ir = _shared_memo_inline_ir(originals.inline_ir, state)
+    run, get = _lean_postproc(originals.postproc_run, originals.get_block_entry_vars)
+    postproc.PostProcessor.run = run
+    ir.FunctionIR.get_block_entry_vars = get
+
+
+def _restore(originals: _Originals) -> None:
+    from numba.core import inline_closurecall, ir, postproc
+
+    inline_closurecall.copy = originals.inliner_copy
+    inline_closurecall.InlineWorker.inline_ir = originals.inline_ir
+    postproc.PostProcessor.run = originals.postproc_run
+    ir.FunctionIR.get_block_entry_vars = originals.get_block_entry_vars
+
+
+_COMPILING_LOCK = threading.Lock()
+_compiling_depth = 0
+_installed: _Originals | None = None
+
+
+@contextmanager
+def compiling() -> Iterator[None]:
+    """Compile the loops with the faster inliner and post-processor, numba's own after.
+
+    Inside the ``with`` block numba's IR inliner copies each callee's variable
+    scope once per inlining (:class:`_SharedMemoCopy`) and its post-processor
+    computes block-entry liveness only on demand (:func:`_lean_postproc`), work
+    that grows with the size of the inlined IR (docs/performance.md,
+    "Measurements behind the loops' design"). On exit numba's originals are back in place.
+    Nested blocks install once; with a numba whose internals differ the block
+    compiles with numba's own. Process-wide while active: enter it only in a
+    process that compiles nothing else meanwhile (the warm-up).
+    """
+    global _compiling_depth, _installed
+    with _COMPILING_LOCK:
+        if _compiling_depth == 0:
+            _installed = _numba_originals()
+            if _installed is not None:
+                _install(_installed)
+        _compiling_depth += 1
+    try:
+        yield
+    finally:
+        with _COMPILING_LOCK:
+            _compiling_depth -= 1
+            if _compiling_depth == 0 and _installed is not None:
+                _restore(_installed)
+                _installed = None
+
 
 # numba's NumPy error model: a division by zero gives inf or NaN, which the loops
 # report as a failed step with the partial trajectory, instead of raising out of them

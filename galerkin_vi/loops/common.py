@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._jit import kernel
+from .abi import STATUS_NEWTON_FAILED, STATUS_NONFINITE, STATUS_OK, STATUS_SINGULAR
 
 __all__ = [
     "FREEZE",
@@ -30,10 +31,6 @@ __all__ = [
     "wrap_angles",
 ]
 
-STATUS_OK = 0
-STATUS_NEWTON_FAILED = 1
-STATUS_SINGULAR = 2
-STATUS_NONFINITE = 3
 # below this relative increment Newton has converged to a few ulps after one more step
 FREEZE = 1e-8
 TWO_PI_HI = 6.283185307179586  # float(2 pi)
@@ -44,8 +41,8 @@ TWO_PI_LO = 2.4492935982947064e-16  # 2 pi - TWO_PI_HI
 def interpolate(i, inv_h, qk, C, Phi, D, Q, V):
     """Q = q_k + sum_nu Phi[i, nu] C[nu] and V = sum_nu D[i, nu] C[nu] / h at quadrature point i.
 
-    ``inv_h`` is 1/h: a division per coordinate was a tenth of the general loop's
-    own time (double pendulum, profiled).
+    ``inv_h`` is 1/h: a multiplication per coordinate, where a division would be
+    a noticeable share of the general loop's own time.
     """
     s1, n = C.shape
     for a in range(n):
@@ -82,9 +79,9 @@ def first_guess(C, d, h, v0):
 def advance_position(qk, q_lost, C, turns, periodic):
     """q_{k+1} = q_k + C[-1] with compensated (Kahan) summation, angles kept in [-pi, pi).
 
-    ``q_lost`` carries the rounding error of each addition into the next one;
-    measured over 1e6 Kepler steps (s = 4, h = T/500): max|dH| in the last tenth
-    1.3e-12 -> 3.5e-13, energy trend 5.3e-16 -> 1.2e-16 per period.
+    ``q_lost`` carries the rounding error of each addition into the next one, so
+    that rounding does not accumulate as a drift of the energy over long runs
+    (docs/performance.md, "Measurements behind the loops' design").
     """
     s = C.shape[0] - 1
     for a in range(qk.shape[0]):

@@ -53,10 +53,14 @@ def linear_loop(
     q_out,
     p_out,
     turns_out,
+    iterations_out,
+    iteration_total,
 ):
     """Run ``n_steps`` steps of a quadratic Lagrangian; arguments as :func:`.general_loop`.
 
-    Returns (status, steps completed, rows saved).
+    Each step is one solve with the factors of the constant Jacobian: one
+    iteration in ``iterations_out`` and ``iteration_total``. Returns the 5-tuple
+    of :mod:`.abi` (largest residual 0.0, failing increment NaN: nothing iterates).
     """
     n = q0.shape[0]
     banded = pattern is not None
@@ -83,7 +87,7 @@ def linear_loop(
     )  # fmt: skip
     saved = save_row(0, t0, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic)
     if not factor_jacobian(K, piv, s, traits, pattern):
-        return STATUS_SINGULAR, 0, saved
+        return STATUS_SINGULAR, 0, saved, 0.0, np.nan
     for k in range(n_steps):
         tk = t0 + k * h
         if k > 0:
@@ -104,7 +108,9 @@ def linear_loop(
                     saved = save_row(
                         saved, tk, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic
                     )
-                return STATUS_NONFINITE, k, saved
+                return STATUS_NONFINITE, k, saved, 0.0, np.nan
+        iterations_out[k // save_every] = 1
+        iteration_total[0] += 1
         compensated_add(pk, p_lost, dp)
         advance_position(qk, q_lost, C, turns, periodic)
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
@@ -112,4 +118,4 @@ def linear_loop(
                 saved, t0 + (k + 1) * h, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out,
                 periodic,
             )  # fmt: skip
-    return STATUS_OK, n_steps, saved
+    return STATUS_OK, n_steps, saved, 0.0, np.nan

@@ -2,7 +2,7 @@
 
 :meth:`galerkin_vi.Integrator.integrate_many` runs members (initial states,
 parameter sets) of one system, method and step size. Called one by one from
-Python, each member paid about 0.2 ms of Python around its compiled loop;
+Python, each member pays about 0.2 ms of Python around its compiled loop;
 here one call runs a block of members, each through the very loop a single
 run calls (same compiled function, same arguments), so every member's result
 is bitwise the one-by-one run's. Blocks run in threads at once: the drivers
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import driver, kernel
+from ._jit import driver
 from .constrained import constrained_loop
 from .general import general_loop
 from .linear import linear_loop
@@ -25,23 +25,7 @@ from .point import point_hessian
 from .stage_form import stage_form_loop
 from .varying_mass import varying_mass_loop
 
-__all__ = ["legendre_members", "linear_counted", "members_loop"]
-
-
-@kernel
-def linear_counted(
-    fn, traits, pattern, periodic, q0, p0, v0, t0, h, n_steps, save_every, prm, b, c, d, Phi,
-    D, E, t_out, q_out, p_out, turns_out, iterations_out, iteration_total,
-):  # fmt: skip
-    """:func:`.linear_loop` with the other loops' arguments and results: one factorisation
-    and one solve per step count as one iteration per step (as a single run counts them)."""
-    status, done, saved = linear_loop(
-        fn, traits, pattern, periodic, q0, p0, v0, t0, h, n_steps, save_every, prm, b, c, d,
-        Phi, D, E, t_out, q_out, p_out, turns_out,
-    )  # fmt: skip
-    iterations_out[: -(-done // save_every)] = 1
-    iteration_total[0] = done
-    return status, done, saved, 0.0, np.nan
+__all__ = ["legendre_members", "members_loop"]
 
 
 @driver
@@ -74,8 +58,8 @@ def members_loop(
     The loop is called as ``loop(*before, q0, p0, v0, t0, h, n_steps, save_every,
     prm, *after, t, q, p, turns, iterations, iteration_total)`` on member ``i``'s
     rows of the outputs (``iteration_totals`` has shape (m, 1)). ``results[i]``
-    receives (status, steps completed, rows saved, max residual, failing
-    increment) as the loop returns them; a failed member does not stop the others.
+    receives the loop's 5-tuple (:data:`.abi.RESULT_FIELDS`) as it returns it;
+    a failed member does not stop the others.
     """
     # the switches leave one of these assignments (numba prunes the others)
     if general is not None:
@@ -83,7 +67,7 @@ def members_loop(
     if stage_form is not None:
         loop = stage_form_loop
     if linear is not None:
-        loop = linear_counted
+        loop = linear_loop
     if constrained is not None:
         loop = constrained_loop
     if varying_mass is not None:

@@ -10,7 +10,7 @@ function, numba's disk cache of a loop holds for every system.
 
 Signatures (every array argument is a ``double *`` to the first element of a
 C-contiguous float64 array; the functions are called with numba's calling
-convention, see :func:`_emit_call`):
+convention, see :func:`_emit_call`; the slot numbers are those of :mod:`.abi`):
 
 =====================  ===================================================================
 slot                   function
@@ -39,6 +39,17 @@ from numba.core.errors import TypingError
 from numba.extending import intrinsic
 
 from ._jit import kernel
+from .abi import (
+    CONSTRAINT,
+    CONSTRAINT_HESS,
+    CONSTRAINT_JAC,
+    CONSTRAINT_RATE,
+    GRADIENT,
+    HESSIAN,
+    LAGRANGIAN,
+    MASS,
+    N_SLOTS,
+)
 
 __all__ = [
     "CONSTRAINT",
@@ -60,16 +71,6 @@ __all__ = [
     "point_mass_row",
 ]
 
-GRADIENT = 0
-HESSIAN = 1
-LAGRANGIAN = 2
-CONSTRAINT = 3
-CONSTRAINT_JAC = 4
-CONSTRAINT_RATE = 5
-CONSTRAINT_HESS = 6
-MASS = 7
-N_SLOTS = 8
-
 
 def _check_arrays(arrays) -> None:
     for array in arrays:
@@ -89,10 +90,9 @@ def _emit_call(context, builder, signature, args, returns_double: bool):
     calling convention (a status as result, the return value through the first
     pointer, exception information through the second), not through the C
     wrapper around it: the wrapper would be a second call per evaluation (it
-    does not inline the body), measured at 3 ns each, a few per cent of a step
-    of a small system. The point functions raise no exceptions (NumPy's error
-    model: NaN and inf flow into the loops' finiteness checks), so the status
-    is not read.
+    does not inline the body), a few per cent of a step of a small system. The
+    point functions raise no exceptions (NumPy's error model: NaN and inf flow
+    into the loops' finiteness checks), so the status is not read.
     """
     address, t, *arrays = args
     pointers = []

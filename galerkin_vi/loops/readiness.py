@@ -17,7 +17,7 @@ import subprocess
 import sys
 import time
 
-from ._jit import loop_cache_dir
+from ._jit import discard_unreadable_loops, loop_cache_dir
 
 __all__ = ["MARKER", "compile_all", "ensure_loops", "loops_ready"]
 
@@ -77,13 +77,16 @@ def compile_all(jobs: int | None = None, verbose: bool = False) -> float:
 def ensure_loops() -> None:
     """Before the first integration on a machine: compile every loop, saying so.
 
-    Cheap after the first call in a process (a flag) and on a machine where the
-    loops are cached (one file test).
+    First deletes the loops' cache files that cannot be read back
+    (:func:`galerkin_vi.loops.discard_unreadable_loops`). Cheap after the first
+    call in a process (a flag) and on a machine where the loops are cached (one
+    file test).
     """
     global _ENSURED
     if _ENSURED:
         return
     _ENSURED = True
+    discard_unreadable_loops()
     if loops_ready() or os.environ.get("GALERKIN_VI_WARMUP_CHILD"):
         return
     sys.stderr.write(

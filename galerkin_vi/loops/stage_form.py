@@ -51,10 +51,9 @@ __all__ = ["stage_form_loop", "too_slow"]
 
 # constant-mass iteration: switch to full Newton when an increment is more than
 # MASS_CONTRACTION * (number of unknowns) times the one before, capped at
-# MASS_CONTRACTION_MAX: a full Newton step costs relatively more with more unknowns
-# (measured break-even: ~0.02 for 2 unknowns, >0.1 from about 10; on a 100-mass chain
-# with 5-7 implicit stages a Newton iteration costs about 35 sweeps, and a cap of 0.2
-# made steps of h >= 0.7 cost 10-20x what the sweeps at contractions 0.3-0.5 cost)
+# MASS_CONTRACTION_MAX: a full Newton step costs relatively more with more unknowns,
+# so the break-even contraction grows with them, and on large chains slow sweeps still
+# beat Newton iterations (docs/performance.md)
 MASS_CONTRACTION = 0.01
 MASS_CONTRACTION_MAX = 0.9
 # ... or when, at its contraction, it would not reach the tolerance within the
@@ -67,9 +66,9 @@ FAST_SWEEPS_LEFT = 13
 MASS_RETRY = 64
 # sums over the stages, sum_j w_j T[j, a] for all a: from this many coordinates on as
 # whole-row updates (for j: for a: x[a] += w_j T[j, a], long independent inner loops),
-# below as one dot product per coordinate (fewer loop set-ups). Measured per step against
-# the other form: outer solar system (n = 18) 10-15 % faster, FPU (6) 3-10 %; Kepler (2)
-# and the pendulum (1) 10-25 % slower. The order of the additions is the same.
+# below as one dot product per coordinate (fewer loop set-ups): the row updates win on
+# long rows, the dot products on short ones (docs/performance.md). The order of the
+# additions is the same.
 WIDE = 4
 
 
@@ -93,8 +92,8 @@ def too_slow(increment, previous, its, contraction, budget, target):
         return False
     if theta <= FAST_SWEEP and its + FAST_SWEEPS_LEFT <= budget:
         # at this rate a sweep gains 1.3 digits or more, and this many sweeps reach the
-        # tolerance from an increment the size of q: no prediction needed. (Its two
-        # logarithms per sweep cost the pendulum's Lobatto(3) step 20 %.)
+        # tolerance from an increment the size of q: no prediction needed (its two
+        # logarithms per sweep would be a large share of a small system's step)
         return False
     return its + np.log(target / increment) / np.log(theta) > budget
 
@@ -105,7 +104,7 @@ def mass_times(M, mass_diagonal, x, out, traits, pattern):
 
     With a diagonal M (point masses, the common case) ``mass_diagonal`` is its
     diagonal, else ``None``: a separate compiled variant, so that the dense loop
-    is not even compiled in (a run-time test cost the pendulum 40 % per step).
+    is not even compiled in (a run-time test here is a large share of a small step).
     """
     n = x.shape[0]
     if mass_diagonal is not None:
@@ -129,7 +128,7 @@ def solve_mass(KM, pivM, mass_diagonal, inverse_mass, x, traits, pattern):
     """x <- M^{-1} x with the factors of :func:`stage_form_loop`'s mass matrix.
 
     A diagonal M (``mass_diagonal`` not None) multiplies by ``inverse_mass``:
-    divisions, u + 1 per coordinate and step, were 3-4 % of a solar-system step.
+    u + 1 multiplications per coordinate and step instead of divisions.
     """
     if mass_diagonal is not None:
         for a in range(x.shape[0]):
@@ -223,8 +222,8 @@ def stage_form_loop(
     wherever its pruning pass cannot pair them: helpers with several exits, of
     several loop nests (the LU solve, the block assembly), or called with a
     conditional expression among their arguments. As separate helpers, the
-    solve and the end of the step cost 25 of each per step, a third of the
-    pendulum's step. Here the work arrays are bound once, before the first
+    solve and the end of the step would cost 25 of each per step, a large share
+    of a small system's step. Here the work arrays are bound once, before the first
     step, and the helpers left in the loop have one loop nest each: the
     optimised code has no reference count inside the step loop (counted in
     the LLVM IR of the compiled loop).
@@ -418,8 +417,8 @@ def stage_form_loop(
                     # per entry would cost more than the rest of the entry). Its residual at the old
                     # iterate is m |dZ|; the stage positions moved iff the sum of their
                     # changes is not zero, a sum that NaN and inf reach too. (Two maxima
-                    # and a sum per entry: the sweep runs at the speed of a hand-written
-                    # fixed-point kernel's, 2x faster than with more bookkeeping.)
+                    # and a sum per entry, no more bookkeeping: the sweep runs at the speed
+                    # of a hand-written fixed-point kernel's.)
                     shift = 0.0
                     for il in range(u):
                         if wide:
@@ -430,10 +429,9 @@ def stage_form_loop(
                                 for a in range(n):
                                     x[a] += w * FI[jl, a]
                         for a in range(n):
-                            # narrow: the dot product in this loop, not in one before it
-                            # (one loop set-up less per stage and sweep; with the control
-                            # point and dp alike, callgrind instructions per step: pendulum
-                            # Gauss(2) 4076 -> 3934, Kepler 3807 -> 3691)
+                            # narrow: the dot product in this loop, not in a loop of its
+                            # own ahead of it (one loop set-up less per stage and sweep; the
+                            # control point and dp are formed alike)
                             if wide:
                                 acc = x[a]
                             else:

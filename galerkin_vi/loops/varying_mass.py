@@ -58,11 +58,9 @@ FIXED_POINT_CONTRACTION = 0.3
 #: oscillation of the last bits, and the iteration has converged
 ROUNDOFF_CHANGE = 1e-10
 #: hand over to Newton when the sweeps per step, averaged over the steps after the first
-#: (weight SWEEP_MEMORY of the past), exceed this plus the number of stages: measured on
-#: the double pendulum (whole runs, T = 20, against Newton alone), the fixed point beat
-#: Newton with 8-9 sweeps per step at s = 4 (0.76-0.91 of its time) and 10-12 at s = 6
-#: (0.68-0.76), and lost with 10-15 at s = 4 (1.2-1.5, hand-over included). Allowances
-#: of 6 and 8 (checked from the fourth step) handed over runs it was winning, or late
+#: (weight SWEEP_MEMORY of the past), exceed this plus the number of stages: about where
+#: the fixed point stops beating Newton on the double pendulum; smaller allowances hand
+#: over runs it is winning, larger ones hand over late (docs/performance.md)
 SWEEP_ALLOWANCE = 7
 SWEEP_MEMORY = 0.75
 
@@ -175,8 +173,8 @@ def varying_mass_loop(
         while True:
             # the stage positions and momenta of the current V and F (the first iterate
             # when its = 0); after a sweep, whether and how far they moved, against the
-            # step's scale (a multiplication: dividing by each entry's own size was a
-            # tenth of the sweep)
+            # step's scale (a multiplication: dividing by each entry's own size would be
+            # a noticeable share of the sweep)
             change_q = 0.0
             change_p = 0.0
             moved = False

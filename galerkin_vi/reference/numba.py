@@ -3,16 +3,9 @@
 
 from __future__ import annotations
 
+from ..codegen.compiled import numba_version
+
 __all__ = ["available", "numba_version"]
-
-
-def numba_version() -> str | None:
-    """The installed numba version, or None when numba cannot be imported."""
-    try:
-        import numba
-    except Exception:  # noqa: BLE001 - any import failure means "not available"
-        return None
-    return numba.__version__
 
 
 def available() -> bool:

@@ -63,11 +63,6 @@ def run_segment(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     if spec.path == "explicit":
         return _explicit(spec, segment, out)
     loop, before, after = spec.loop_parts()
-    if spec.path == "linear":
-        status, done, saved = loop(*before, *segment.arguments, *after, *out.arrays)
-        out.iterations[: -(-done // segment.save_every)] = 1
-        out.iteration_total[0] = done
-        return LoopResult(status, done, saved, 0.0, np.nan)
     result = LoopResult(*loop(*before, *segment.arguments, *after, *out.arrays, *counters))
     if spec.path == "varying_mass" and result.status != 0:
         return newton_from_last_row(spec, segment, out, result)
@@ -90,11 +85,12 @@ def _explicit(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     diagonal = np.diag(inverse).copy() if spec.diagonal_mass else None
     time_dependent = None if spec.autonomous else True
     s = segment
-    status, done, saved = explicit_loop(
-        fn, periodic, time_dependent, s.q0, s.p0, s.t0, s.h, s.n_steps, s.save_every, s.prm,
-        inverse, diagonal, *out.arrays,
+    return LoopResult(
+        *explicit_loop(
+            fn, periodic, time_dependent, s.q0, s.p0, s.t0, s.h, s.n_steps, s.save_every, s.prm,
+            inverse, diagonal, *out.arrays,
+        )
     )  # fmt: skip
-    return LoopResult(status, done, saved, 0.0, np.nan)
 
 
 def newton_from_last_row(

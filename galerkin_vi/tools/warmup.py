@@ -142,29 +142,36 @@ def warm_up(group: int = 0, of: int = 1, verbose: bool = False) -> dict[str, flo
 
     Returns the seconds each run took, by the variant's label.
     """
-    from ..action import solve_bvp
-    from ..integrator import Integrator
+    from ..loops import compiling
 
     runs = _runs()
     seconds: dict[str, float] = {}
-    for index in _group(group, of):
-        label, system, method, specialize, q0, v0 = runs[index]
-        start = time.perf_counter()
-        if label == BOUNDARY_VALUE:
-            solve_bvp(system, method, q0, v0, (0.0, 0.1), 4, backend="numba")
-            seconds[label] = time.perf_counter() - start
+    # numba's compiler with the package's faster inliner and post-processor, only here
+    with compiling():
+        for index in _group(group, of):
+            label = runs[index][0]
+            seconds[label] = _warm_up_one(runs[index])
             if verbose:
                 print(f"  {seconds[label]:5.1f} s  {label}", flush=True)
-            continue
+    return seconds
+
+
+def _warm_up_one(run: tuple) -> float:
+    """Compile (or load) the loops of one warm-up run; the seconds it took."""
+    from ..action import solve_bvp
+    from ..integrator import Integrator
+
+    label, system, method, specialize, q0, v0 = run
+    start = time.perf_counter()
+    if label == BOUNDARY_VALUE:
+        solve_bvp(system, method, q0, v0, (0.0, 0.1), 4, backend="numba")
+    else:
         integrator = Integrator(system, method, specialize=specialize)
         integrator.integrate(q0, v0=v0, h=0.01, n_steps=2, on_failure="raise")
         if integrator.kernel_path != "explicit":
             # the member loop of ensembles (and their Legendre transforms) for this loop
             integrator.integrate_many([q0, q0], [v0, v0], h=0.01, n_steps=2, workers=1)
-        seconds[label] = time.perf_counter() - start
-        if verbose:
-            print(f"  {seconds[label]:5.1f} s  {label}", flush=True)
-    return seconds
+    return time.perf_counter() - start
 
 
 def main(argv: Sequence[str] | None = None) -> int:

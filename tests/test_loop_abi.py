@@ -1,0 +1,237 @@
+"""The loops' calling convention (loops/abi.py) and an import that changes nothing outside.
+
+``import galerkin_vi`` must leave numba's compiler as numba ships it: the
+package's faster inliner and post-processor are installed only inside
+:func:`galerkin_vi.loops.compiling` (the warm-up), and restored after.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import galerkin_vi as gvi
+from galerkin_vi import loops
+from galerkin_vi.codegen.slots import POINT_SLOTS
+from galerkin_vi.loops import abi, point, traits
+from galerkin_vi.run.status import RunStatus, loop_status
+
+q, v, x, y, vx, vy = sp.symbols("q v x y vx vy")
+
+# numba's attributes the package's compile-time replacements touch, by dotted name
+_NUMBA_ORIGINALS = textwrap.dedent(
+    """
+    import copy
+    from numba.core import inline_closurecall, ir, postproc
+
+    def originals():
+        return {
+            "PostProcessor.run": postproc.PostProcessor.run,
+            "FunctionIR.get_block_entry_vars": ir.FunctionIR.get_block_entry_vars,
+            "InlineWorker.inline_ir": inline_closurecall.InlineWorker.inline_ir,
+            "inline_closurecall.copy": inline_closurecall.copy,
+        }
+
+    def same(before, after):
+        return {k: after[k] is before[k] for k in before}
+    """
+)
+
+
+def _python(script: str, env: dict | None = None) -> dict:
+    """Run ``script`` in a fresh interpreter; the JSON it prints last."""
+    done = subprocess.run(
+        [sys.executable, "-c", _NUMBA_ORIGINALS + textwrap.dedent(script)],
+        env=env or dict(os.environ),
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_import_leaves_numbas_compiler_untouched():
+    result = _python(
+        """
+        import json
+        before = originals()
+        assert inline_closurecall.copy is copy
+        import galerkin_vi
+        print(json.dumps(same(before, originals())))
+        """
+    )
+    assert result == dict.fromkeys(result, True) and len(result) == 4
+
+
+def test_users_numba_code_compiles_with_numbas_originals_after_a_run():
+    # during the user's compilation, numba's post-processor must be numba's own: a spy
+    # wrapped around the original at import records that it (not a replacement) runs
+    result = _python(
+        """
+        import json
+        import numpy as np
+        import sympy as sp
+        from numba import njit
+        before = originals()
+        calls = []
+        original_run = before["PostProcessor.run"]
+
+        def spy(self, *args, **kwargs):
+            calls.append(1)
+            return original_run(self, *args, **kwargs)
+
+        postproc.PostProcessor.run = spy
+        import galerkin_vi as gvi
+
+        q, v = sp.symbols("q v")
+        system = gvi.LagrangianSystem(v**2 / 2 + sp.cos(q), [q], [v])
+        traj = gvi.Integrator(system, gvi.Galerkin(2)).integrate([1.0], [0.0], h=0.1, n_steps=5)
+        assert traj.success
+        still_spy = postproc.PostProcessor.run is spy
+        calls.clear()
+
+        @njit
+        def user_sum(a):
+            total = 0.0
+            for value in a:
+                total += value * value
+            return total
+
+        value = user_sum(np.arange(4.0))
+        after = originals()
+        print(json.dumps({
+            "still_spy": still_spy, "spy_ran": len(calls) > 0, "value": value,
+            "inline_ir": after["InlineWorker.inline_ir"] is before["InlineWorker.inline_ir"],
+            "entry_vars": after["FunctionIR.get_block_entry_vars"]
+            is before["FunctionIR.get_block_entry_vars"],
+            "copy": after["inline_closurecall.copy"] is copy,
+        }))
+        """
+    )
+    assert result == {
+        "still_spy": True,
+        "spy_ran": True,
+        "value": 14.0,
+        "inline_ir": True,
+        "entry_vars": True,
+        "copy": True,
+    }
+
+
+def test_compiling_installs_its_replacements_only_inside_and_restores_them():
+    from numba.core import inline_closurecall, ir, postproc
+
+    def current():
+        return (
+            postproc.PostProcessor.run,
+            ir.FunctionIR.get_block_entry_vars,
+            inline_closurecall.InlineWorker.inline_ir,
+            inline_closurecall.copy,
+        )
+
+    before = current()
+    with loops.compiling():
+        inside = current()
+        with loops.compiling():  # nested: installed once
+            assert current() == inside
+        assert current() == inside
+    assert all(a is not b for a, b in zip(before, inside, strict=True))
+    assert all(a is b for a, b in zip(before, current(), strict=True))
+    with pytest.raises(RuntimeError, match="boom"), loops.compiling():
+        raise RuntimeError("boom")
+    assert all(a is b for a, b in zip(before, current(), strict=True))
+
+
+def test_unreadable_loop_cache_files_are_discarded_when_the_loops_are_made_ready(warm_cache):
+    folder = next((warm_cache / "loops").iterdir())
+    index = sorted(folder.glob("explicit.explicit_loop-*.nbi"))[0]
+    index.write_bytes(index.read_bytes()[:10])  # a killed writer
+    env = dict(os.environ, GALERKIN_VI_CACHE_DIR=str(warm_cache))
+    result = _python(
+        f"""
+        import json, pathlib
+        index = pathlib.Path({str(index)!r})
+        import galerkin_vi
+        after_import = index.exists()
+        from galerkin_vi.loops.readiness import ensure_loops
+        ensure_loops()
+        print(json.dumps({{"after_import": after_import, "after_ready": index.exists()}}))
+        """,
+        env,
+    )
+    assert result == {"after_import": True, "after_ready": False}
+
+
+def test_point_slots_are_one_table():
+    assert sorted(POINT_SLOTS.values()) == list(range(abi.N_SLOTS))
+    names = {
+        "point_gradient": abi.GRADIENT,
+        "point_hessian": abi.HESSIAN,
+        "lagrangian": abi.LAGRANGIAN,
+        "point_constraint": abi.CONSTRAINT,
+        "point_constraint_jacobian": abi.CONSTRAINT_JAC,
+        "point_constraint_rate": abi.CONSTRAINT_RATE,
+        "point_constraint_hessian": abi.CONSTRAINT_HESS,
+        "point_mass": abi.MASS,
+    }
+    assert names == POINT_SLOTS
+    # the loops' modules read the same objects
+    assert (point.GRADIENT, point.MASS, point.N_SLOTS) == (abi.GRADIENT, abi.MASS, abi.N_SLOTS)
+    assert (traits.BAND, traits.AUTONOMOUS, traits.N_TRAITS) == (abi.BAND, abi.AUTONOMOUS, 4)
+    system = gvi.LagrangianSystem(v**2 / 2 + sp.cos(q), [q], [v])
+    integrator = gvi.Integrator(system, gvi.Galerkin(2))
+    addresses = integrator.compiled_point_functions(("point_gradient", "lagrangian"))[0]
+    assert len(addresses) == abi.N_SLOTS
+    assert addresses[abi.GRADIENT] != 0 and addresses[abi.LAGRANGIAN] != 0
+    assert addresses[abi.CONSTRAINT] == 0  # no constraints: never compiled
+
+
+def test_status_codes_map_to_run_statuses():
+    assert loop_status(abi.STATUS_OK) == RunStatus.COMPLETED
+    assert loop_status(abi.STATUS_NEWTON_FAILED) == RunStatus.NO_CONVERGENCE
+    assert loop_status(abi.STATUS_SINGULAR) == RunStatus.SINGULAR_JACOBIAN
+    assert loop_status(abi.STATUS_NONFINITE) == RunStatus.NON_FINITE
+
+
+@pytest.mark.parametrize("save_every", [1, 3])
+def test_linear_loop_counts_one_iteration_per_step_itself(save_every):
+    system = gvi.LagrangianSystem((vx**2 + vx * vy + vy**2) / 2 - (x**2 + y**2) / 2,
+                                  [x, y], [vx, vy])  # fmt: skip
+    integrator = gvi.Integrator(system, gvi.Galerkin(2))
+    assert integrator.kernel_path == "linear"
+    n_steps = 10
+    q0, v0 = [0.5, -0.2], [0.1, 0.0]
+    traj = integrator.integrate(q0, v0, h=0.1, n_steps=n_steps, save_every=save_every)
+    assert traj.success and len(traj.t) == -(-n_steps // save_every) + 1
+    assert traj.total_newton_iterations == n_steps
+    assert list(traj.newton_iterations) == [1] * -(-n_steps // save_every)
+    assert traj.max_residual == 0.0  # nothing iterates
+    # an ensemble member runs the same compiled loop: the same counts, bit for bit the same rows
+    many = integrator.integrate_many([q0] * 2, [v0] * 2, h=0.1, n_steps=n_steps,
+                                     save_every=save_every)  # fmt: skip
+    for member in many:
+        assert member.total_newton_iterations == n_steps
+        np.testing.assert_array_equal(member.newton_iterations, traj.newton_iterations)
+        np.testing.assert_array_equal(member.q, traj.q)
+        np.testing.assert_array_equal(member.p, traj.p)
+
+
+def test_explicit_loop_reports_a_completed_run_without_iterations():
+    system = gvi.LagrangianSystem(v**2 / 2 + sp.cos(q), [q], [v])
+    integrator = gvi.Integrator(system, gvi.Galerkin(1))
+    assert integrator.kernel_path == "explicit"
+    traj = integrator.integrate([0.5], [0.1], h=0.1, n_steps=7)
+    assert traj.success and len(traj.t) == 8
+    assert traj.max_residual == 0.0 and traj.total_newton_iterations == 0
+
+
+def test_loop_result_names_the_fields_in_order():
+    result = abi.LoopResult(*range(len(abi.RESULT_FIELDS)))
+    assert result._fields == abi.RESULT_FIELDS
