@@ -167,7 +167,7 @@ def test_a_step_the_fixed_point_cannot_take_hands_the_run_to_newton(monkeypatch)
     original = segment.newton_from_last_row
 
     def spy(spec, run, out, result):
-        handovers.append(result.done)  # the step the fixed point stopped before
+        handovers.append(result.steps)  # the step the fixed point stopped before
         return original(spec, run, out, result)
 
     monkeypatch.setattr(segment, "newton_from_last_row", spy)

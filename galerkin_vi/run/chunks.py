@@ -30,7 +30,7 @@ import numpy as np
 from .trajectory import Trajectory
 
 if TYPE_CHECKING:
-    from .segment import LoopResult
+    from ..loops.abi import LoopResult
     from .spec import Segment
 
 __all__ = [
@@ -120,9 +120,9 @@ def run_in_chunks(
             parts.append(part)
             last = part
             if bar is not None:
-                bar.update(result.done)
+                bar.update(result.steps)
             if result.status != 0:
-                done_steps += result.done
+                done_steps += result.steps
                 break
             done_steps += steps
             left -= steps
@@ -133,7 +133,7 @@ def run_in_chunks(
     finally:
         if bar is not None:
             bar.close()
-    return _stitched(parts, t0, h), result._replace(done=done_steps), interrupted
+    return _stitched(parts, t0, h), result._replace(steps=done_steps), interrupted
 
 
 def carry_turns(previous: Trajectory, part: Trajectory) -> Trajectory:

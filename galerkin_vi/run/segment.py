@@ -9,11 +9,10 @@ saved row (:func:`newton_from_last_row`); its failures are the run's.
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 
 from ..errors import DegenerateLagrangianError
+from ..loops.abi import LoopResult
 from ..model.system import is_regular
 from ..reference import numpy as numpy_backend
 from ..reference import numpy_constrained
@@ -24,24 +23,14 @@ from .trajectory import Trajectory
 __all__ = ["LoopResult", "run_once", "run_segment"]
 
 
-class LoopResult(NamedTuple):
-    """What every loop returns."""
-
-    status: int
-    done: int
-    saved: int
-    worst: float
-    increment: float
-
-
 def run_once(spec: RunSpec, segment: Segment) -> tuple[Trajectory, LoopResult]:
     """The loop's trajectory of ``segment`` as it came (failures included) and its result."""
     system = spec.system
     out = RunOutputs.allocate(segment.n_steps, segment.save_every, system.n, spec.periodic)
     result = run_segment(spec, segment, out)
     traj = out.trajectory(
-        result.status, result.done, result.saved, result.worst, segment.save_every, system,
-        segment.prm, spec.order,
+        result.status, result.steps, result.saved, result.worst_residual, segment.save_every,
+        system, segment.prm, spec.order,
     )  # fmt: skip
     return traj, result
 
@@ -134,5 +123,5 @@ def newton_from_last_row(
     steps = np.minimum(np.arange(saved_tail) * s.save_every, done)
     out.t[row : row + saved_tail] = s.t0 + (start + steps) * s.h
     return LoopResult(
-        status, start + done, row + saved_tail, max(result.worst, worst_tail), increment
+        status, start + done, row + saved_tail, max(result.worst_residual, worst_tail), increment
     )

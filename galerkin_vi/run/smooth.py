@@ -79,7 +79,7 @@ def integrate_smooth(
     if not traj.success:
         step = int(round((traj.t[-1] - plan.t0) / plan.h))
         return failed_run(
-            traj, on_failure, step=step, t=float(traj.t[-1]), residual=result.increment,
+            traj, on_failure, step=step, t=float(traj.t[-1]), residual=result.last_increment,
             stacklevel=stacklevel,
         )  # fmt: skip
     warn_if_unstable(traj, plan.h, stacklevel=stacklevel)
@@ -91,18 +91,18 @@ def _reported(traj: Trajectory, result, plan, interrupted: bool):
     failure's description (None when the loop completed)."""
     if interrupted:
         message = (
-            f"{RunStatus.INTERRUPTED.cause} after step {result.done} (t = {traj.t[-1]:.6g}); "
+            f"{RunStatus.INTERRUPTED.cause} after step {result.steps} (t = {traj.t[-1]:.6g}); "
             "the states computed so far are kept"
         )
         return replace(traj, status=RunStatus.INTERRUPTED, message=message), None
     if result.status == 0:
         return traj, None
     code = loop_status(result.status)
-    t_fail = plan.t0 + result.done * plan.h
+    t_fail = plan.t0 + result.steps * plan.h
     # the explicit loop has no iteration, hence no increment to report
-    increment = result.increment
+    increment = result.last_increment
     last = f" (last increment {increment:.3g})" if np.isfinite(increment) else ""
-    failure = f"step {result.done} (t = {t_fail:.6g}, h = {plan.h:.3g}): {code.cause}{last}"
+    failure = f"step {result.steps} (t = {t_fail:.6g}, h = {plan.h:.3g}): {code.cause}{last}"
     message = f"{failure}; the states before the failing step are kept. Try a smaller h."
     return replace(traj, status=code, message=message), failure
 
@@ -128,7 +128,7 @@ def one_step(spec: RunSpec, q, p, tau: float, t0: float, prm) -> tuple[NDArray, 
         raise ConvergenceError(
             f"one step of length {tau:.3g} from t = {t0:.6g} failed: "
             f"{loop_status(result.status).cause}",
-            step=0, t=t0, residual=float(result.increment), partial=traj,
+            step=0, t=t0, residual=float(result.last_increment), partial=traj,
         )  # fmt: skip
     return traj.q[-1].copy(), traj.p[-1].copy()
 

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from enum import IntEnum
 
+from ..loops.abi import STATUS_NEWTON_FAILED, STATUS_NONFINITE, STATUS_OK, STATUS_SINGULAR
+
 __all__ = ["RunStatus", "SolverResult", "SolverStatus", "loop_status"]
 
 
@@ -69,12 +71,12 @@ _CAUSES = {
     "coming to rest or sliding on it), which isolated impacts cannot continue",
 }
 
-# the compiled loops and the NumPy backends return 0 for success and these codes
+# the codes of the compiled loops and the NumPy backends (galerkin_vi.loops.abi)
 _LOOP_CODES = {
-    0: RunStatus.COMPLETED,
-    1: RunStatus.NO_CONVERGENCE,
-    2: RunStatus.SINGULAR_JACOBIAN,
-    3: RunStatus.NON_FINITE,
+    STATUS_OK: RunStatus.COMPLETED,
+    STATUS_NEWTON_FAILED: RunStatus.NO_CONVERGENCE,
+    STATUS_SINGULAR: RunStatus.SINGULAR_JACOBIAN,
+    STATUS_NONFINITE: RunStatus.NON_FINITE,
 }
 
 
