@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..model.system import LagrangianSystem
 
-__all__ = ["DenseOutput", "hermite", "stencil_nodes"]
+__all__ = ["DenseOutput", "StateInterpolant", "hermite", "query_times", "stencil_nodes"]
 
 #: dense outputs of at most this many nodes keep the Newton tables of all their stencils
 #: (computed on the first call; about 2 stencil x n numbers per node): repeated calls on
@@ -116,8 +116,44 @@ def hermite_evaluate(z: NDArray, coef: NDArray, t: NDArray) -> tuple[NDArray, ND
     return y, dy
 
 
+def query_times(t: ArrayLike, t_min: float, t_max: float) -> tuple[NDArray, NDArray]:
+    """``t`` as an array and flattened, checked: finite and in ``[t_min, t_max]`` (to a
+    few ulps: a dense output does not extrapolate)."""
+    times = np.asarray(t, dtype=float)
+    flat = np.atleast_1d(times).ravel()
+    if not np.all(np.isfinite(flat)):
+        raise ValueError("t must be finite")
+    tiny = 8 * np.finfo(float).eps * max(1.0, abs(t_min), abs(t_max))
+    outside = (flat < t_min - tiny) | (flat > t_max + tiny)
+    if np.any(outside):
+        raise ValueError(
+            f"t = {float(flat[outside][0])!r} is outside the run's span "
+            f"[{t_min!r}, {t_max!r}]: dense output does not extrapolate"
+        )
+    return times, flat
+
+
+class StateInterpolant:
+    """Positions, velocities and momenta from ``state(t) -> (q, v)``: the calls every
+    dense output shares (it provides ``state``, ``system`` and ``params``)."""
+
+    def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Positions at ``t``."""
+        return self.state(t)[0]
+
+    def velocity(self, t: ArrayLike) -> NDArray[np.float64]:
+        """Velocities at ``t``: the interpolant's derivative."""
+        return self.state(t)[1]
+
+    def momentum(self, t: ArrayLike) -> NDArray[np.float64]:
+        r"""Momenta :math:`p = \partial L/\partial v` of the interpolated (q, v) at ``t``."""
+        q, v = self.state(t)
+        prm = dict(zip(self.system.params, self.params, strict=True))
+        return self.system.legendre(q, v, np.asarray(t, dtype=float), prm)
+
+
 @dataclass(frozen=True, eq=False)
-class DenseOutput:
+class DenseOutput(StateInterpolant):
     r"""Positions, velocities and momenta of a run at any time in its span.
 
     Call it like :class:`scipy.integrate.OdeSolution`, with one difference in
@@ -160,33 +196,9 @@ class DenseOutput:
         index = np.arange(len(self.t) - size + 1)[:, None] + np.arange(size)
         return hermite_coefficients(self.t[index], self.q[index], self.v[index])
 
-    def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
-        """Positions at ``t``."""
-        return self.state(t)[0]
-
-    def velocity(self, t: ArrayLike) -> NDArray[np.float64]:
-        """Velocities at ``t``: the interpolant's derivative."""
-        return self.state(t)[1]
-
-    def momentum(self, t: ArrayLike) -> NDArray[np.float64]:
-        r"""Momenta :math:`p = \partial L/\partial v` of the interpolated (q, v) at ``t``."""
-        q, v = self.state(t)
-        prm = dict(zip(self.system.params, self.params, strict=True))
-        return self.system.legendre(q, v, np.asarray(t, dtype=float), prm)
-
     def state(self, t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Positions and velocities at ``t`` (scalar or array), t-major."""
-        times = np.asarray(t, dtype=float)
-        flat = np.atleast_1d(times).ravel()
-        if not np.all(np.isfinite(flat)):
-            raise ValueError("t must be finite")
-        tiny = 8 * np.finfo(float).eps * max(1.0, abs(self.t_min), abs(self.t_max))
-        outside = (flat < self.t_min - tiny) | (flat > self.t_max + tiny)
-        if np.any(outside):
-            raise ValueError(
-                f"t = {float(flat[outside][0])!r} is outside the run's span "
-                f"[{self.t_min!r}, {self.t_max!r}]: dense output does not extrapolate"
-            )
+        times, flat = query_times(t, self.t_min, self.t_max)
         forward = self.t[-1] >= self.t[0]
         nodes = self.t if forward else self.t[::-1]
         k = np.clip(np.searchsorted(nodes, flat, side="right") - 1, 0, len(nodes) - 2)

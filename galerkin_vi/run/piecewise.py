@@ -21,7 +21,7 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .dense import DenseOutput
+from .dense import DenseOutput, StateInterpolant, query_times
 
 __all__ = ["PiecewiseDenseOutput", "smooth_segments"]
 
@@ -41,7 +41,7 @@ def smooth_segments(t: NDArray) -> list[slice]:
 
 
 @dataclass(frozen=True, eq=False)
-class PiecewiseDenseOutput:
+class PiecewiseDenseOutput(StateInterpolant):
     r"""Positions, velocities and momenta of a run with velocity jumps, at any time.
 
     The interface of :class:`~galerkin_vi.run.dense.DenseOutput` (t-major
@@ -122,33 +122,10 @@ class PiecewiseDenseOutput:
         order = np.argsort(starts, kind="stable")
         return index[order], starts[order]
 
-    def __call__(self, t: ArrayLike) -> NDArray[np.float64]:
-        """Positions at ``t``."""
-        return self.state(t)[0]
-
-    def velocity(self, t: ArrayLike) -> NDArray[np.float64]:
-        """Velocities at ``t`` (the post-impact one at an impact time)."""
-        return self.state(t)[1]
-
-    def momentum(self, t: ArrayLike) -> NDArray[np.float64]:
-        r"""Momenta :math:`p = \partial L/\partial v` of the interpolated (q, v) at ``t``."""
-        q, v = self.state(t)
-        prm = dict(zip(self.system.params, self.params, strict=True))
-        return self.system.legendre(q, v, np.asarray(t, dtype=float), prm)
-
     def state(self, t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Positions and velocities at ``t`` (scalar or array), t-major."""
-        times = np.asarray(t, dtype=float)
-        flat = np.atleast_1d(times).ravel()
-        if not np.all(np.isfinite(flat)):
-            raise ValueError("t must be finite")
-        tiny = 8 * np.finfo(float).eps * max(1.0, abs(self.t_min), abs(self.t_max))
-        outside = (flat < self.t_min - tiny) | (flat > self.t_max + tiny)
-        if np.any(outside):
-            raise ValueError(
-                f"t = {float(flat[outside][0])!r} is outside the run's span "
-                f"[{self.t_min!r}, {self.t_max!r}]: dense output does not extrapolate"
-            )
+        """Positions and velocities at ``t`` (scalar or array), t-major; at an impact
+        time the state after it (right-continuous)."""
+        times, flat = query_times(t, self.t_min, self.t_max)
         index, starts = self._order
         which = index[np.clip(np.searchsorted(starts, flat, side="right") - 1, 0, None)]
         n = self.pieces[0].q.shape[1]
