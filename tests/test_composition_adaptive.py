@@ -287,3 +287,24 @@ def test_combinations_without_meaning_say_why(adaptive, orbit):
     )
     with pytest.raises(ValueError, match="impact"):
         gvi.AdaptiveIntegrator(floor, gvi.Galerkin(2, gvi.gauss_legendre(2)), g=R**1.5)
+
+
+def test_stream_chunks_join_to_one_run(adaptive, orbit):
+    _, problem = orbit
+    run = dict(h=H, n_steps=600, save_every=3)
+    whole = adaptive.integrate(problem.q0, problem.v0, **run)
+    chunks = list(adaptive.stream(problem.q0, problem.v0, chunk_steps=150, **run))
+    assert [len(c) for c in chunks] == [51, 50, 50, 50]
+    assert all(isinstance(c, gvi.AdaptiveTrajectory) for c in chunks)
+    # the first chunk is a run of its own, bit for bit; the joins restart the iteration
+    first = adaptive.integrate(problem.q0, problem.v0, h=H, n_steps=150, save_every=3)
+    np.testing.assert_array_equal(chunks[0].q, first.q)
+    np.testing.assert_array_equal(chunks[0].t, first.t)
+    joined_t = np.concatenate([c.t for c in chunks])
+    joined_q = np.concatenate([c.q for c in chunks])
+    np.testing.assert_allclose(joined_t, whole.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(joined_q, whole.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.concatenate([c.tau for c in chunks]), whole.tau, atol=1e-12)
+    # physical time and the orbit: the stream's last row is on the exact orbit
+    exact = problem.exact(np.array([chunks[-1].t[-1]]))
+    assert np.abs(chunks[-1].q[-1] - exact[0]).max() < 1e-8

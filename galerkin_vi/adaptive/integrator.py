@@ -7,7 +7,7 @@ import math
 import numbers
 import os
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
 from dataclasses import replace
 
@@ -350,6 +350,62 @@ class AdaptiveIntegrator:
             if b > a
         ]
         return Ensemble.of([tr for f in futures for tr in f.result()])
+
+    def stream(
+        self,
+        q0: ArrayLike,
+        v0: ArrayLike | None = None,
+        p0: ArrayLike | None = None,
+        *,
+        h: float,
+        n_steps: int,
+        chunk_steps: int = 100_000,
+        t0: float = 0.0,
+        params: Mapping[sp.Symbol | str, float] | None = None,
+        save_every: int = 1,
+        on_failure: str = "warn",
+    ) -> Iterator[AdaptiveTrajectory]:
+        r""":meth:`integrate` of ``n_steps`` fictitious steps in chunks, yielded one by one.
+
+        Memory stays bounded by one chunk however long the run. The chunks are
+        those of :meth:`Integrator.stream` on the extended system (the first
+        starts with the initial state, every later one after its first step;
+        the energy :math:`E` of :math:`K = g\,(H - E)` is the run's throughout),
+        each in physical time and coordinates.
+
+        Parameters
+        ----------
+        chunk_steps : int
+            Steps per chunk, a positive multiple of ``save_every``.
+        Other parameters
+            As for :meth:`integrate`.
+
+        Yields
+        ------
+        AdaptiveTrajectory
+            The chunks; after a failure (``on_failure="warn"``) the last one
+            holds the failing chunk's states before the failing step.
+
+        Raises
+        ------
+        ConvergenceError
+            With ``on_failure="raise"``, with ``.partial`` in physical time.
+        """
+        check_failure_mode(on_failure)
+        h = fictitious_step(h)
+        qh, ph, extended_params, prm = self._start(q0, v0, p0, t0, params)
+        chunks = self.integrator.stream(
+            qh, p0=ph, h=h, n_steps=n_steps, chunk_steps=chunk_steps, params=extended_params,
+            save_every=save_every, on_failure=on_failure,
+        )  # fmt: skip
+        return self._physical_chunks(chunks, prm)
+
+    def _physical_chunks(self, chunks, prm) -> Iterator[AdaptiveTrajectory]:
+        try:
+            for chunk in chunks:
+                yield self._trajectory(chunk, prm)
+        except ConvergenceError as exc:
+            raise self._physical_failure(exc, prm) from exc
 
     def step(
         self,
