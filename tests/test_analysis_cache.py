@@ -63,7 +63,7 @@ def test_a_damaged_entry_is_derived_and_written_again(cache_dir):
     entry.write_bytes(b"\x80\x04 not a pickle")
     again = _model()
     assert again.pieces == first.pieces
-    assert analysis_cache.load_analysis(again._analysis_key) is not None
+    assert analysis_cache.load_analysis(again.analysis_key) is not None
 
 
 def test_a_rejected_model_is_not_cached(cache_dir):

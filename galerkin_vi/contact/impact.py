@@ -93,7 +93,7 @@ class ContactFunctions:
         args = (t, *system.q, *system.v, *system.params)
         q, v = system.q, system.v
         gaps = [c.gap for c in system.contacts]
-        self._system = system
+        self.system = system
         self.gaps = sp.lambdify(args, gaps, "numpy")
         self.gradients = sp.lambdify(args, [[sp.diff(g, a) for a in q] for g in gaps], "numpy")
         self.hessians = sp.lambdify(

@@ -120,7 +120,7 @@ class ContactStepper:
     """The interior-point step of a system with contacts and a Galerkin method."""
 
     def __init__(self, functions: ContactFunctions, tables, prm) -> None:
-        system = functions._system
+        system = functions.system
         self.system, self.tables, self.prm, self.functions = system, tables, prm, functions
         n = system.n
         self.layout: list[ContactStep] = []

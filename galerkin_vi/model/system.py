@@ -242,7 +242,9 @@ class LagrangianSystem:
             L, self.q, self.v, t, self.params, tuple(self.param_defaults), self.forces,
             self.constraints,
         )  # fmt: skip
-        self._analysis_key = key
+        #: the hash of the inputs that keys this system's analysis on disk (and its copies
+        #: in an executor's workers)
+        self.analysis_key = key
         analysis = load_analysis(key)
         if analysis is not None:
             # derived and checked before for exactly these inputs
@@ -328,7 +330,7 @@ class LagrangianSystem:
         """Keep ``value`` (plain, picklable data derived from this system) in its
         analysis cache entry, for later processes."""
         self._analysis[name] = value
-        store_analysis(self._analysis_key, self._analysis)
+        store_analysis(self.analysis_key, self._analysis)
 
     def _analyse(self, L, q_list, v_list, t, force_list, constraint_list) -> None:
         """Differentiate, check and analyse the model (what the analysis cache stores)."""

@@ -459,7 +459,7 @@ def _worker_integrator(spec):
     """The integrator of ``spec`` in this process, built once (loaded from the cache)."""
     integrator_class, system, method, backend, tol, maxiter, specialize, fixed_point = spec
     key = (
-        system._analysis_key, pickle.dumps(method), backend, tol, maxiter, specialize,
+        system.analysis_key, pickle.dumps(method), backend, tol, maxiter, specialize,
         fixed_point,
     )  # fmt: skip
     if key not in _INTEGRATORS:
