@@ -398,3 +398,29 @@ def test_trajectory_dense_of_a_run_with_impacts_is_piecewise():
     times = np.linspace(traj.t[0], traj.t[-1], 777)
     np.testing.assert_array_equal(again(times), traj.sol(times))
     np.testing.assert_array_equal(again.velocity(times), traj.sol.velocity(times))
+
+
+def test_step_applies_the_impacts_inside_it():
+    # a ball 1e-3 above the floor falling at speed 1: the floor is reached within the step
+    integrator = gvi.Integrator(_ball(1.0), gvi.Galerkin(3))
+    q1, p1 = integrator.step([1e-3], [-1.0], 0.01)
+    one = integrator.integrate([1e-3], p0=[-1.0], h=0.01, n_steps=1)
+    assert len(one.impacts) == 1
+    np.testing.assert_array_equal(q1, one.q[-1])
+    np.testing.assert_array_equal(p1, one.p[-1])
+    assert q1[0] > 0.0 and p1[0] > 0.0  # bounced: above the floor, moving up
+
+
+def test_stream_of_a_bouncing_ball_joins_to_one_run():
+    integrator = gvi.Integrator(_ball(0.8), gvi.Galerkin(3))
+    run = dict(h=1e-2, n_steps=400)
+    whole = integrator.integrate(*START, **run)
+    chunks = list(integrator.stream(*START, chunk_steps=100, **run))
+    assert len(chunks) == 4
+    impacts = [i.t for c in chunks for i in c.impacts]
+    np.testing.assert_allclose(impacts, [i.t for i in whole.impacts], rtol=0, atol=1e-12)
+    # the grid rows of the chunks are the whole run's (joins restart the iteration)
+    grid = np.concatenate([c.t for c in chunks])
+    keep = np.isin(np.round(whole.t / 1e-2, 6), np.round(grid / 1e-2, 6))
+    np.testing.assert_allclose(np.concatenate([c.t for c in chunks]), whole.t[keep], atol=1e-12)
+    np.testing.assert_allclose(np.concatenate([c.q for c in chunks]), whole.q[keep], atol=1e-10)
