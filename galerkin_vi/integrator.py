@@ -297,7 +297,7 @@ class Integrator:
         progress : bool or None
             A progress bar (tqdm): always, never, or (None, default) for runs
             predicted to take over 2 s when stderr is a terminal. Runs over
-            5000 steps go in chunks whose size depends on the system only
+            5040 steps go in chunks whose size depends on the system only
             (:mod:`galerkin_vi.run.chunks`); Ctrl-C between them ends the run
             with the states computed so far (their dense output and events
             included), ``status`` :attr:`RunStatus.INTERRUPTED` and a warning,

@@ -26,6 +26,7 @@ def small_chunks(monkeypatch):
     monkeypatch.setattr(chunks, "FIRST_CHUNK", 40)
     monkeypatch.setattr(chunks, "MIN_CHUNK", 50)
     monkeypatch.setattr(chunks, "CHUNK_WORK", 1)
+    monkeypatch.setattr(chunks, "JOIN", 1)
 
 
 def _run(save_every=1, **kw):
@@ -135,7 +136,7 @@ def test_chunks_do_not_depend_on_the_clock():
         for _ in range(2)
     ]
     np.testing.assert_array_equal(runs[0].q, runs[1].q)
-    assert chunks.chunk_steps(1, 1) == 200_000 and chunks.chunk_steps(100, 7) == 2002
+    assert chunks.chunk_steps(1, 1) == 201_600 and chunks.chunk_steps(100, 7) == 5040
 
 
 def test_a_terminal_event_stops_the_computation(small_chunks):
@@ -145,3 +146,17 @@ def test_a_terminal_event_stops_the_computation(small_chunks):
     # the pendulum passes the vertical at t = 1.83: the run stopped in the chunk after it
     assert traj.status == gvi.RunStatus.TERMINATED and traj.t[-1] == pytest.approx(1.83, abs=0.01)
     assert traj.n_steps < 300
+
+
+@pytest.mark.parametrize("save_every", [3, 7, 10])
+def test_long_runs_keep_every_kth_row_bit_for_bit(save_every):
+    # the chunks join at the same steps whatever save_every (a divisor of JOIN) is
+    integrator = gvi.Integrator(PENDULUM, gvi.Galerkin(2))
+    steps = 2 * chunks.FIRST_CHUNK + 70
+    every = integrator.integrate([1.0], [0.5], h=0.1, n_steps=steps)
+    sparse = integrator.integrate([1.0], [0.5], h=0.1, n_steps=steps, save_every=save_every)
+    rows = np.append(np.arange(0, steps + 1, save_every), steps)
+    rows = np.unique(rows)
+    np.testing.assert_array_equal(sparse.t, every.t[rows])
+    np.testing.assert_array_equal(sparse.q, every.q[rows])
+    np.testing.assert_array_equal(sparse.p, every.p[rows])

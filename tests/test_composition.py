@@ -188,6 +188,7 @@ def small_chunks(monkeypatch):
     monkeypatch.setattr(chunks, "FIRST_CHUNK", 5)
     monkeypatch.setattr(chunks, "MIN_CHUNK", 5)
     monkeypatch.setattr(chunks, "CHUNK_WORK", 1)
+    monkeypatch.setattr(chunks, "JOIN", 1)
 
 
 @pytest.mark.parametrize("name", NAMES)

@@ -15,6 +15,12 @@ chain: well under a second, see docs/performance.md). Each chunk continues
 from the state the previous one ended in, like :meth:`Integrator.stream`: the
 result equals one call's up to round-off at the joins (every chunk starts its
 iteration afresh and without the compensation bits of the summed positions).
+
+The joins sit at multiples of ``JOIN`` = 5040 steps (divisible by 1 to 10, 12,
+14, 15, 16, 18, 20, 21, 24, 28, 30, 35, 36, 40, ...) and of ``save_every``: for
+every ``save_every`` that divides ``JOIN`` they are the same steps as those of
+the run that saves every step, so its saved rows are every k-th row of that
+run bit for bit, however long the run.
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CHUNK_WORK",
+    "JOIN",
     "FIRST_CHUNK",
     "MIN_CHUNK",
     "PROGRESS_AFTER",
@@ -43,8 +50,10 @@ __all__ = [
     "single_call",
 ]
 
+#: the steps at which chunks join are multiples of this (a multiple of 1 to 10)
+JOIN = 5040
 #: steps of the first call; shorter runs are one call
-FIRST_CHUNK = 5000
+FIRST_CHUNK = JOIN
 #: coordinate-steps per later chunk
 CHUNK_WORK = 200_000
 #: fewest steps of a later chunk (each chunk's cold start costs about one iteration)
@@ -54,8 +63,9 @@ PROGRESS_AFTER = 2.0
 
 
 def chunk_steps(n: int, save_every: int) -> int:
-    """Steps per chunk after the first: ``CHUNK_WORK / n``, whole saved intervals."""
-    return _multiple(max(MIN_CHUNK, CHUNK_WORK // max(n, 1)), save_every)
+    """Steps per chunk after the first: about ``CHUNK_WORK / n``, in whole ``JOIN``s and
+    whole saved intervals."""
+    return _multiple(_multiple(max(MIN_CHUNK, CHUNK_WORK // max(n, 1)), JOIN), save_every)
 
 
 def single_call(n_steps: int, save_every: int) -> bool:
