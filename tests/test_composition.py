@@ -202,20 +202,11 @@ def test_each_kind_runs_its_own_loop(name):
     assert traj.status == gvi.RunStatus.COMPLETED and len(traj) == kind.n_steps + 1
 
 
-HANDOVER = pytest.mark.xfail(
-    strict=True,
-    reason="the varying-mass loop hands over to Newton at step 14 (h = 0.1) and "
-    "run.segment.newton_from_last_row resumes from the last *saved* row: with save_every=k "
-    "Newton recomputes up to k - 1 steps the fixed point took, different in the last bits; "
-    "bitwise equality needs the loop to return its last good state (loops/varying_mass.py)",
-)
-
-
-@pytest.mark.parametrize(
-    "name", [pytest.param(n, marks=HANDOVER) if n == "varying mass" else n for n in NAMES]
-)
+@pytest.mark.parametrize("name", NAMES)
 @pytest.mark.parametrize("k", [3, 4])
 def test_save_every_keeps_every_kth_row_bit_for_bit(name, k):
+    # the varying-mass kind hands over to Newton at step 14 (h = 0.1): the rows after it
+    # are Newton's from the state at step 14, whatever save_every is
     _assert_every_kth_row(_run(name), _run(name, save_every=k), k)
 
 

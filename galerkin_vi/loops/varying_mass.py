@@ -100,9 +100,10 @@ def varying_mass_loop(
     stage velocities of the first step. A step whose iteration fails (or contracts
     by less than ``FIXED_POINT_CONTRACTION``, or would need more than ``maxiter``
     sweeps by :func:`.too_slow`'s prediction), and the step after the sweeps per step
-    have come to average more than ``SWEEP_ALLOWANCE + r``, is not taken and *no*
-    extra row is saved: the caller continues from the last saved row with Newton. Returns
-    (status, steps completed, rows saved, max momentum residual, last change).
+    have come to average more than ``SWEEP_ALLOWANCE + r``, is not taken; the state
+    before it is the last row (saved even when not due), from which the caller
+    continues with Newton. Returns (status, steps completed, rows saved, max momentum
+    residual, last change).
     """
     n = q0.shape[0]
     r = b.shape[0]
@@ -296,14 +297,19 @@ def varying_mass_loop(
                 dp[a] = h * accf
                 if not (abs(dq[a]) < 1e300 and abs(dp[a]) < 1e300):
                     status = STATUS_NONFINITE
+        if status == STATUS_OK:
+            # the first step starts from constant stages and takes more sweeps: not counted
+            mean_sweeps = its if k <= 1 else SWEEP_MEMORY * mean_sweeps + (1 - SWEEP_MEMORY) * its
+            if k >= 1 and mean_sweeps > SWEEP_ALLOWANCE + r:
+                # this step is good, but the steps cost more than Newton's would: hand
+                # over before it (the caller resumes from the state at step k)
+                status = STATUS_NEWTON_FAILED
         if status != STATUS_OK:
+            if k % save_every != 0:  # the state at step k, the last row, due or not
+                saved = save_row(
+                    saved, tk, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic
+                )
             return status, k, saved, worst, change
-        # the first step starts from constant stages and takes more sweeps: not counted
-        mean_sweeps = its if k <= 1 else SWEEP_MEMORY * mean_sweeps + (1 - SWEEP_MEMORY) * its
-        if k >= 1 and mean_sweeps > SWEEP_ALLOWANCE + r:
-            # this step is good, but the steps cost more than Newton's would: hand over
-            # before the next one (the caller resumes from the last saved row)
-            return STATUS_NEWTON_FAILED, k, saved, worst, change
         if residual > worst:
             worst = residual
         compensated_add(pk, p_lost, dp)

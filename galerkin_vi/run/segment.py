@@ -85,43 +85,52 @@ def _explicit(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
 def newton_from_last_row(
     spec: RunSpec, segment: Segment, out: RunOutputs, result: LoopResult
 ) -> LoopResult:
-    """Continue a run the varying-mass loop gave up on with Newton, from its last saved row.
+    """Continue a run the varying-mass loop gave up on with Newton, from the state at step k.
 
     The fixed-point iteration stops before a step on which it contracts too
-    slowly (or fails); the general loop then runs the rest from the last
-    saved state (a join like a chunk's: the compensation bits and the
-    extrapolated stages start afresh). Its failures are the run's.
+    slowly (or fails), and leaves the state before it as its last row, due for
+    saving or not. The general loop runs the rest of the segment from there in
+    one call (a join like a chunk's: the compensation bits and the extrapolated
+    stages start afresh), saving every step into work arrays (a segment is at
+    most a chunk long); the rows due are copied into the run's. These are the
+    steps, and the one call, that the run saving every step takes, so a run with
+    ``save_every = k`` saves every k-th of its rows bit for bit. Its failures
+    are the run's.
     """
     from .. import loops
 
     s = segment
-    row = result.saved - 1
-    start = row * s.save_every
-    t_row = s.t0 + start * s.h
+    k, row = result.steps, result.saved - 1
+    t_k = s.t0 + k * s.h
     q_row, p_row = out.q[row].copy(), out.p[row].copy()
-    turns = out.turns[row].copy() if out.periodic else None
     # the velocities only start Newton's first guess: the compiled transform, the
     # NumPy one where there is none
     v_row = None
     if spec.legendre is not None:
-        v_row = spec.legendre.velocities_of_quadratic(t_row, q_row, p_row, s.prm)
+        v_row = spec.legendre.velocities_of_quadratic(t_k, q_row, p_row, s.prm)
     if v_row is None:
         prm_map = dict(zip(spec.system.params, s.prm, strict=True))
-        v_row = spec.system.inverse_legendre(q_row, p_row, t_row, prm_map)
-    out.iterations[row:] = 0
-    turns_tail = out.turns[row:] if out.periodic else out.turns
-    tail = (out.t[row:], out.q[row:], out.p[row:], turns_tail)
+        v_row = spec.system.inverse_legendre(q_row, p_row, t_k, prm_map)
+    tail = RunOutputs.allocate(s.n_steps - k, 1, spec.system.n, out.periodic)
     _, before, after = spec.loop_parts("newton")
-    status, done, saved_tail, worst_tail, increment = loops.general_loop(
-        *before, q_row, p_row, np.asarray(v_row, dtype=float), t_row, s.h,
-        s.n_steps - start, s.save_every, s.prm, *after, *tail, out.iterations[row:],
-        out.iteration_total,
+    status, done, saved, worst, increment = loops.general_loop(
+        *before, q_row, p_row, np.asarray(v_row, dtype=float), t_k, s.h, s.n_steps - k, 1,
+        s.prm, *after, *tail.arrays, tail.iterations, tail.iteration_total,
     )  # fmt: skip
-    if turns is not None:
-        out.turns[row : row + saved_tail] += turns
-    # the times as the run's own clock gives them (t0 + k h, not (t0 + start h) + j h)
-    steps = np.minimum(np.arange(saved_tail) * s.save_every, done)
-    out.t[row : row + saved_tail] = s.t0 + (start + steps) * s.h
-    return LoopResult(
-        status, start + done, row + saved_tail, max(result.worst_residual, worst_tail), increment
+    steps = k + np.arange(saved)  # tail row j is step k + j
+    due = (steps % s.save_every == 0) | (steps == s.n_steps)
+    due[-1] |= status != 0  # a failure keeps its last good state, as the loops do
+    rows = slice(row, row + int(due.sum()))
+    out.t[rows] = s.t0 + steps[due] * s.h
+    out.q[rows], out.p[rows] = tail.q[:saved][due], tail.p[:saved][due]
+    if out.periodic:
+        out.turns[rows] = tail.turns[:saved][due] + out.turns[row]
+    # iterations per saved interval: the tail's steps join the intervals they fall in
+    if k % s.save_every == 0:
+        out.iterations[k // s.save_every :] = 0  # the interval holds only the step not taken
+    attempted = done + (status != 0)
+    np.maximum.at(
+        out.iterations, (k + np.arange(attempted)) // s.save_every, tail.iterations[:attempted]
     )
+    out.iteration_total[0] += tail.iteration_total[0]
+    return LoopResult(status, k + done, rows.stop, max(result.worst_residual, worst), increment)
