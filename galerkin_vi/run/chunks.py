@@ -107,7 +107,7 @@ def run_in_chunks(
     n_steps, save_every, t0, h = first.n_steps, first.save_every, first.t0, first.h
     steps = min(n_steps, _multiple(FIRST_CHUNK, save_every))
     start = time.perf_counter()
-    traj, result = run_chunk(replace(first, n_steps=steps))
+    traj, result = run_chunk(first if steps == n_steps else first._replace(n_steps=steps))
     per_step = (time.perf_counter() - start) / max(steps, 1)
     left = n_steps - steps
     if result.status != 0 or left == 0 or (stop is not None and stop(traj)):
@@ -124,7 +124,7 @@ def run_in_chunks(
             q_start = last.q_reduced[-1] if last.q_reduced is not None else last.q[-1]
             t_start = t0 + done_steps * h  # not last.t[-1]: no rounding accumulates
             q, p, v = restart(q_start, last.p[-1], t_start)
-            segment = replace(first, q0=q, p0=p, v0=v, t0=t_start, n_steps=steps)
+            segment = first._replace(q0=q, p0=p, v0=v, t0=t_start, n_steps=steps)
             part, result = run_chunk(segment)
             part = carry_turns(last, part)
             parts.append(part)

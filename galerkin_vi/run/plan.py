@@ -8,7 +8,7 @@ resolved here, once, into a frozen :class:`RunPlan`; the run stages below it
 from __future__ import annotations
 
 import numbers
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -22,8 +22,7 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
-class RunPlan:
+class RunPlan(NamedTuple):
     """The grid of a run: ``t_k = t0 + k h`` for ``k = 0 .. n_steps``, every
     ``save_every``-th state saved (and always the last)."""
 
@@ -35,10 +34,6 @@ class RunPlan:
     @property
     def t_end(self) -> float:
         return self.t0 + self.n_steps * self.h
-
-    def __iter__(self):
-        # (h, n_steps, t0, save_every): unpacking for the callers that want all four
-        return iter((self.h, self.n_steps, self.t0, self.save_every))
 
 
 def state_vector(name: str, x: ArrayLike, n: int) -> NDArray[np.float64]:

@@ -19,7 +19,7 @@ at the compiled call (:mod:`galerkin_vi.run.segment`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,9 +45,9 @@ __all__ = [
 LOOP_PATHS = ("explicit", "linear", "separable", "varying_mass", "newton", "constrained")
 
 
-@dataclass(frozen=True)
-class Segment:
-    """One compiled call's worth of a run: its start state and grid."""
+class Segment(NamedTuple):
+    """One compiled call's worth of a run: its start state and grid, as a named tuple
+    whose fields are the loops' segment arguments in their order."""
 
     q0: NDArray[np.float64]
     p0: NDArray[np.float64]
@@ -61,9 +61,7 @@ class Segment:
     @property
     def arguments(self) -> tuple:
         """The segment's arguments of a loop, in the loops' order."""
-        return (
-            self.q0, self.p0, self.v0, self.t0, self.h, self.n_steps, self.save_every, self.prm,
-        )  # fmt: skip
+        return tuple(self)
 
 
 @dataclass(frozen=True, eq=False)
