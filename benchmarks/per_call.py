@@ -29,9 +29,8 @@ def main() -> None:
             start = time.perf_counter()
             integrator.integrate(problem.q0, problem.v0, **run)
             best = min(best, time.perf_counter() - start)
-        print(
-            f"{n_steps:6d} steps: {best * 1e6:9.1f} us per call, {best / n_steps * 1e9:7.1f} ns per step"
-        )
+        per_step = best / n_steps * 1e9
+        print(f"{n_steps:6d} steps: {best * 1e6:9.1f} us per call, {per_step:7.1f} ns per step")
 
 
 if __name__ == "__main__":
