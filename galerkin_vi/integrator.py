@@ -468,8 +468,7 @@ class Integrator:
     def step(
         self, q0: ArrayLike, p0: ArrayLike, h: float, t0: float = 0.0, params=None
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """One step of the position–momentum map, ``(q_k, p_k) -> (q_{k+1}, p_{k+1})``
-        (with contacts, the impacts inside it applied)."""
+        """One step ``(q_k, p_k) -> (q_{k+1}, p_{k+1})``, the impacts inside it applied."""
         traj = self.integrate(q0, p0=p0, h=h, n_steps=1, t0=t0, params=params, on_failure="raise")
         return traj.q[-1].copy(), traj.p[-1].copy()
 
