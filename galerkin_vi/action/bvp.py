@@ -457,6 +457,9 @@ def _load_points(system: LagrangianSystem, method: Galerkin):
 
 def _compiled_solve(problem: _Stationarity, compiled, path: _Path, tol, maxiter):
     from ..loops.action import stationary_path
+    from ..loops.readiness import ensure_loops
+
+    ensure_loops()  # unreadable cache files go before the loop loads
 
     fn, traits = compiled
     tables = problem.tables

@@ -257,6 +257,10 @@ def member_outputs(integrator, q, name, x, params, run, workers) -> tuple[Member
         run.get("h"), run.get("n_steps"), run.get("t_span"), run.get("t0", 0.0),
         run.get("save_every", 1),
     )  # fmt: skip
+    from ..loops.readiness import ensure_loops
+
+    # before the compiled Legendre transforms of the members' starts load their loop
+    ensure_loops()
     spec = integrator.run_spec
     m, n = q.shape
     prms = parameter_matrix(system, params, m)
@@ -275,9 +279,6 @@ def member_outputs(integrator, q, name, x, params, run, workers) -> tuple[Member
             q0s[rows], p0s[rows], v0s[rows], *fixed, prms[rows], after, *out.rows(rows),
         )  # fmt: skip
 
-    from ..loops.readiness import ensure_loops
-
-    ensure_loops()
     blocks = _blocks(m, workers)
     if workers == 1 or len(blocks) == 1:
         for rows in blocks:
