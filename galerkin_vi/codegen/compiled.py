@@ -110,10 +110,10 @@ class PointFunctions:
         """
         from numba import cfunc
 
-        from .. import loops  # noqa: F401 - registers the cache locator of the point functions
+        from ..loops import cache_locators
 
         signatures = _c_signatures()
-        with _LOCK:
+        with _LOCK, cache_locators():
             for name in names:
                 if name not in self.compiled:
                     function = getattr(self.module, name)
@@ -198,8 +198,11 @@ def _import_entry(key: str, module_name: str) -> ModuleType:
     assert loader_spec is not None and loader_spec.loader is not None
     module = importlib.util.module_from_spec(loader_spec)
     sys.modules[module_name] = module
+    from ..loops import cache_locators
+
     try:
-        loader_spec.loader.exec_module(module)
+        with cache_locators():  # its njit(cache=True) parts pick their locator here
+            loader_spec.loader.exec_module(module)
     except BaseException:
         del sys.modules[module_name]
         raise

@@ -20,8 +20,7 @@ machine and argument types and caches it (:mod:`._jit` says where);
 
 from __future__ import annotations
 
-# registers the cache locators before any loop is defined
-from ._jit import compiling, discard_unreadable_loops, loop_cache_dir
+from ._jit import cache_locators, compiling, discard_unreadable_loops, loop_cache_dir
 from .constrained import constrained_loop
 from .explicit import explicit_loop
 from .general import general_loop
@@ -30,6 +29,7 @@ from .stage_form import stage_form_loop
 from .varying_mass import varying_mass_loop
 
 __all__ = [
+    "cache_locators",
     "compiling",
     "constrained_loop",
     "discard_unreadable_loops",

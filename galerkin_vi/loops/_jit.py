@@ -12,7 +12,10 @@ file alone; a driver inlines helpers from several modules, so an edit to one
 of them would go unnoticed. :class:`LoopCacheLocator` puts the cache of every
 driver under :func:`galerkin_vi.cache.cache_root` in a folder named after a
 hash of all loop sources (and numba's and Python's versions): any edit, or a
-new package version, starts a fresh folder.
+new package version, starts a fresh folder. numba takes its locators from one
+global list; :func:`cache_locators` puts the package's there only while a driver
+is decorated or a system's point functions are loaded, so a user's own cached
+functions never meet them.
 
 :func:`compiling` makes numba's compiler faster on the loops' large inlined IR
 (two replacements of numba's internals). It is a context manager, entered only
@@ -42,6 +45,7 @@ from ..cache import cache_root, discard_unreadable
 __all__ = [
     "LoopCacheLocator",
     "PointCacheLocator",
+    "cache_locators",
     "compiling",
     "discard_unreadable_loops",
     "driver",
@@ -122,23 +126,37 @@ class PointCacheLocator(caching.InTreeCacheLocator):
     @classmethod
     def from_function(cls, py_func, py_file):
         path = Path(py_file)
-        if path.parent.name != "points" or not path.name.startswith("gvi_"):
+        try:
+            ours = path.resolve().parent == (cache_root() / "points").resolve()
+        except OSError:
+            return None
+        if not ours or not path.name.startswith("gvi_"):
             return None
         return super().from_function(py_func, py_file)
 
 
-def _register_locators() -> None:
+@contextmanager
+def cache_locators() -> Iterator[None]:
+    """numba's cache locators of the package's compiled code, registered for the block only.
+
+    numba picks a function's cache locator once, when the function is decorated
+    with ``cache=True`` (a driver at its module's import, a point function when its
+    module is loaded or compiled); outside these blocks numba's list of locators is
+    numba's own, so a user's cached functions never meet the package's.
+    """
     # numba 0.68 renamed _CacheImpl to CacheImpl; without either, numba's own
     # locators cache the loops beside their sources (staleness by file date)
     impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
     classes = getattr(impl, "_locator_classes", None)
+    added = []
     if isinstance(classes, list):
-        for locator in (PointCacheLocator, LoopCacheLocator):
-            if locator not in classes:
-                classes.insert(0, locator)
-
-
-_register_locators()
+        added = [c for c in (PointCacheLocator, LoopCacheLocator) if c not in classes]
+        classes[:0] = added
+    try:
+        yield
+    finally:
+        for locator in added:
+            classes.remove(locator)
 
 
 @cache
@@ -321,4 +339,10 @@ kernel = njit(inline="always", error_model="numpy", cache=False)
 # helpers of scalars only: ordinary calls, which LLVM inlines (no reference counts to
 # pay), so that numba's IR inliner does not copy them into every call site
 scalar = njit(error_model="numpy", cache=False)
-driver = njit(cache=True, error_model="numpy", nogil=True)
+_DRIVER = njit(cache=True, error_model="numpy", nogil=True)
+
+
+def driver(function):
+    """A loop's entry point: numba-compiled with ``nogil``, cached under the cache root."""
+    with cache_locators():
+        return _DRIVER(function)
