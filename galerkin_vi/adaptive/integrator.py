@@ -19,6 +19,7 @@ from ..errors import ConvergenceError, RunFailureWarning
 from ..integrator import Integrator
 from ..method.galerkin import Galerkin
 from ..model.system import LagrangianSystem
+from ..run.chunks import ProgressBar
 from ..run.ensemble import Ensemble, member_parameters, member_starts
 from ..run.events import apply_events, locate_events, terminal_stop
 from ..run.failures import check_failure_mode, failed_run
@@ -27,7 +28,6 @@ from ..run.status import RunStatus
 from ..run.trajectory import Trajectory
 from .physical import (
     OutputRequest,
-    ProgressBar,
     fictitious_step,
     fictitious_times,
     physical_span,
@@ -480,7 +480,11 @@ class AdaptiveIntegrator:
         direction = 1.0 if h > 0 else -1.0
         largest = _MAX_CHUNK if stop is None else _WATCHED_CHUNK
         chunk = _FIRST_CHUNK if n_steps is None else min(_FIRST_CHUNK, n_steps)
-        bar = ProgressBar(progress, abs(t_final - float(qh[-1])) if n_steps is None else n_steps)
+        bar = ProgressBar(
+            progress,
+            abs(t_final - float(qh[-1])) if n_steps is None else n_steps,
+            "step" if n_steps is not None else "time",
+        )
         interrupted = landing = False
         try:
             while chunk > 0:

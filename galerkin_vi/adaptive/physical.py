@@ -6,15 +6,12 @@ from __future__ import annotations
 
 import math
 import numbers
-import sys
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..run.chunks import PROGRESS_AFTER
 from ..run.dense import hermite
 from ..run.events import Event, as_events, event_function
 from ..run.outputs import at_times
@@ -22,7 +19,6 @@ from ..run.plan import requested_times
 
 __all__ = [
     "OutputRequest",
-    "ProgressBar",
     "fictitious_step",
     "fictitious_times",
     "intervals",
@@ -127,31 +123,3 @@ def rows_at(traj, full, times: NDArray, rates: NDArray):
     # p_z is constant to round-off: the value at the interval's first node
     momentum = full.clock_momentum[intervals(full.t, rows.t)]
     return replace(rows, tau=tau, clock_momentum=momentum)
-
-
-class ProgressBar:
-    """A tqdm bar of a chunked run: always, never, or (None) when the first chunk predicts
-    more than ``PROGRESS_AFTER`` seconds and stderr is a terminal."""
-
-    def __init__(self, progress: bool | None, total: float) -> None:
-        self.progress, self.total = progress, float(total)
-        self.start = time.perf_counter()
-        self.bar = None
-        self.shown = 0.0
-
-    def update(self, done: float) -> None:
-        if self.bar is None and self.progress is not False and done > 0:
-            elapsed = time.perf_counter() - self.start
-            predicted = elapsed * (self.total / done - 1.0)
-            if self.progress or (predicted > PROGRESS_AFTER and sys.stderr.isatty()):
-                from tqdm.auto import tqdm
-
-                self.bar = tqdm(total=self.total, leave=False)
-            self.progress = self.bar is not None
-        if self.bar is not None:
-            self.bar.update(min(done, self.total) - self.shown)
-            self.shown = min(done, self.total)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()

@@ -21,15 +21,13 @@ each smooth piece), so that the run stops soon after one.
 
 from __future__ import annotations
 
-import sys
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..run.chunks import PROGRESS_AFTER
+from ..run.chunks import ProgressBar
 from ..run.dense import DenseOutput, stencil_nodes
 from ..run.events import (
     Event,
@@ -114,9 +112,7 @@ class Watch:
         self.system, self.prm, self.n_steps = system, prm, n_steps
         self.params = dict(zip(system.params, prm, strict=True))
         self.stop = terminal_stop(options.events, options.functions, prm)
-        self.progress = options.progress
-        self.bar = None
-        self.started = time.perf_counter()
+        self.bar = ProgressBar(options.progress, n_steps)
 
     @property
     def terminal(self) -> bool:
@@ -126,7 +122,7 @@ class Watch:
     def seen(self, t, q, p, k: int) -> bool:
         """Rows ``(t, q, p)`` added (the first one seen before): whether a terminal event
         has occurred in them; updates the progress bar to grid step k."""
-        self._update(k)
+        self.bar.update(k)
         if self.stop is None or len(t) < 2:
             return False
         for rows in smooth_segments(t):
@@ -138,21 +134,8 @@ class Watch:
                 return True
         return False
 
-    def _update(self, k: int) -> None:
-        if self.progress is None and k > 0:
-            # as the chunked smooth runs: a bar for runs predicted to last long, on a terminal
-            left = (time.perf_counter() - self.started) / k * (self.n_steps - k)
-            self.progress = bool(left > PROGRESS_AFTER and sys.stderr.isatty())
-        if self.progress and self.bar is None:
-            from tqdm.auto import tqdm
-
-            self.bar = tqdm(total=self.n_steps, unit="step", unit_scale=True, leave=False)
-        if self.bar is not None:
-            self.bar.update(k - self.bar.n)
-
     def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
+        self.bar.close()
 
 
 def saved_every(traj, grid: NDArray[np.bool_], t0: float, h: float, k: int):

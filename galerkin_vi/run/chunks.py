@@ -45,6 +45,7 @@ __all__ = [
     "FIRST_CHUNK",
     "MIN_CHUNK",
     "PROGRESS_AFTER",
+    "ProgressBar",
     "chunk_steps",
     "run_in_chunks",
     "single_call",
@@ -106,17 +107,14 @@ def run_in_chunks(
     """
     n_steps, save_every, t0, h = first.n_steps, first.save_every, first.t0, first.h
     steps = min(n_steps, _multiple(FIRST_CHUNK, save_every))
-    start = time.perf_counter()
+    bar = ProgressBar(progress, n_steps)
     traj, result = run_chunk(first if steps == n_steps else first._replace(n_steps=steps))
-    per_step = (time.perf_counter() - start) / max(steps, 1)
     left = n_steps - steps
     if result.status != 0 or left == 0 or (stop is not None and stop(traj)):
         return traj, result, False
-    if progress is None:
-        progress = per_step * left > PROGRESS_AFTER and sys.stderr.isatty()
     parts, done_steps, last = [traj], steps, traj
     chunk = chunk_steps(traj.q.shape[1], save_every)
-    bar = _bar(n_steps, done_steps) if progress else None
+    bar.update(done_steps)
     interrupted = False
     try:
         while left > 0:
@@ -129,8 +127,7 @@ def run_in_chunks(
             part = carry_turns(last, part)
             parts.append(part)
             last = part
-            if bar is not None:
-                bar.update(result.steps)
+            bar.update(done_steps + result.steps)
             if result.status != 0:
                 done_steps += result.steps
                 break
@@ -141,9 +138,41 @@ def run_in_chunks(
     except KeyboardInterrupt:
         interrupted = True
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     return _stitched(parts, t0, h), result._replace(steps=done_steps), interrupted
+
+
+class ProgressBar:
+    """A tqdm bar of a run: always (``progress=True``), never (``False``), or
+    (``None``) when the time so far predicts more than ``PROGRESS_AFTER`` seconds to
+    go and stderr is a terminal; the clock decides the bar only, never the work.
+
+    ``update(done)`` takes the work done so far (steps, or physical time), out of
+    ``total``; the decision is taken at the first update with ``done > 0``.
+    """
+
+    def __init__(self, progress: bool | None, total: float, unit: str = "step") -> None:
+        self.progress, self.total, self.unit = progress, float(total), unit
+        self.start = time.perf_counter()
+        self.bar = None
+        self.shown = 0.0
+
+    def update(self, done: float) -> None:
+        if self.bar is None and self.progress is not False and done > 0:
+            elapsed = time.perf_counter() - self.start
+            predicted = elapsed * (self.total / done - 1.0)
+            if self.progress or (predicted > PROGRESS_AFTER and sys.stderr.isatty()):
+                from tqdm.auto import tqdm
+
+                self.bar = tqdm(total=self.total, unit=self.unit, unit_scale=True, leave=False)
+            self.progress = self.bar is not None
+        if self.bar is not None:
+            self.bar.update(min(done, self.total) - self.shown)
+            self.shown = min(done, self.total)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
 
 
 def carry_turns(previous: Trajectory, part: Trajectory) -> Trajectory:
@@ -187,9 +216,3 @@ def _stitched(parts: list[Trajectory], t0: float, h: float) -> Trajectory:
 def _multiple(steps: int, save_every: int) -> int:
     """``steps`` rounded up to a multiple of ``save_every`` (chunks join at saved rows)."""
     return -(-steps // save_every) * save_every
-
-
-def _bar(total: int, done: int):
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, initial=done, unit="step", unit_scale=True, leave=False)
