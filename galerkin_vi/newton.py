@@ -32,8 +32,10 @@ __all__ = [
     "NewtonResult",
     "band_lu_factor",
     "band_lu_solve",
+    "band_lu_solve_transpose",
     "lu_factor_inplace",
     "lu_solve_inplace",
+    "lu_solve_transpose",
     "newton_solve",
     "newton_status",
 ]
@@ -230,6 +232,60 @@ def band_lu_backward(ab, kl, ku, x):
         if xj != 0.0:
             for i in range(max(0, j - kv), j):
                 x[i] -= ab[kv + i - j, j] * xj
+
+
+def lu_solve_transpose(lu, piv, x):
+    r"""Solve :math:`A^T y = x` in place with :func:`lu_factor_inplace`'s factors.
+
+    With :math:`A = P^T L U`, :math:`A^{-T} = P^T L^{-T} U^{-T}`: a forward
+    substitution with :math:`U^T` (whose diagonal is stored as reciprocals), a
+    backward one with the unit :math:`L^T`, then the interchanges in reverse
+    order. The discrete adjoint's transposed step is one such solve.
+    """
+    n = lu.shape[0]
+    for i in range(n):
+        acc = x[i]
+        for j in range(i):
+            acc -= lu[j, i] * x[j]
+        x[i] = acc * lu[i, i]
+    for i in range(n - 1, -1, -1):
+        acc = x[i]
+        for j in range(i + 1, n):
+            acc -= lu[j, i] * x[j]
+        x[i] = acc
+    for k in range(n - 1, -1, -1):
+        p = piv[k]
+        if p != k:
+            tmp = x[k]
+            x[k] = x[p]
+            x[p] = tmp
+
+
+def band_lu_solve_transpose(ab, piv, kl, ku, x):
+    r"""Solve :math:`A^T y = x` in place with :func:`band_lu_factor`'s factors.
+
+    :func:`band_lu_factor` writes :math:`A = (L_0 P_0)^{-1} \cdots` column by
+    column; the transpose applies :math:`U^{-T}` (forward, band of width
+    ``kl + ku``), then for ``j = m-1 .. 0`` the transposed elimination of column
+    ``j`` and its interchange.
+    """
+    m = ab.shape[1]
+    kv = kl + ku
+    for j in range(m):
+        acc = x[j]
+        for i in range(max(0, j - kv), j):
+            acc -= ab[kv + i - j, j] * x[i]
+        x[j] = acc * ab[kv, j]
+    for j in range(m - 1, -1, -1):
+        acc = x[j]
+        for i in range(1, min(kl, m - 1 - j) + 1):
+            acc -= ab[kv + i, j] * x[j + i]
+        x[j] = acc
+        p = piv[j]
+        if p != j:
+            tmp = x[j]
+            x[j] = x[p]
+            x[p] = tmp
 
 
 # ---- end kernel ----
