@@ -20,7 +20,7 @@ from .run.loop_choice import loop_path
 from .run.smooth import integrate_smooth
 from .run.spec import RunSpec, compiled_run_spec, loop_traits, reference_run_spec
 from .run.stream import check_stream_arguments, stream_chunks
-from .run.tangent import variation_request
+from .run.tangent import constrained_tangent_spec, variation_request
 from .run.trajectory import Trajectory
 
 __all__ = ["Integrator"]
@@ -207,10 +207,7 @@ class Integrator:
         if self.backend != "numba":
             raise ValueError("tangent and sensitivity need the numba backend (compiled loops)")
         if self.system.m:
-            raise ValueError(
-                "tangent and sensitivity of constrained systems are not supported: the "
-                "tangent map must also differentiate the momentum projection"
-            )
+            return constrained_tangent_spec(self.run_spec)
         return compiled_run_spec(
             self.system, self.method, "newton", self.tol, self.maxiter, self._summary,
             self._points, constant_mass=self.uses_constant_mass,

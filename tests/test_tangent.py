@@ -198,6 +198,49 @@ def test_banded_chain_tangent_is_symplectic_and_matches_differences():
     assert np.abs(whole.T @ J @ whole - J).max() < 1e-12
 
 
+def rod():
+    return gvi.LagrangianSystem(
+        (v1**2 + v2**2) / 2 - g * q2, [q1, q2], [v1, v2],
+        constraints=[(q1**2 + q2**2 - 1) / 2], params={g: 1.0},
+    )  # fmt: skip
+
+
+def test_constrained_tangent_stays_on_the_manifold_and_is_symplectic_there():
+    integrator = gvi.Integrator(rod(), gvi.Galerkin(2))
+    run = dict(h=0.05, n_steps=400)
+    traj = integrator.integrate([0.6, -0.8], v0=[0.8, 0.6], tangent=True, sensitivity=[g], **run)
+    q, p = traj.q[0], traj.p[0]
+    # a basis of the tangent space of the constraint manifold in T*Q at the start:
+    # q . dq = 0 and the hidden constraint q . p = 0 linearised, dq . p + q . dp = 0
+    along = np.r_[-q[1], q[0], 0.0, 0.0]
+    along[2:] = -(along[:2] @ p) * q / (q @ q)
+    basis = np.c_[along, np.r_[0.0, 0.0, -q[1], q[0]]]
+    J = symplectic_form(2)
+    for row in (100, 400):
+        moved = traj.tangent[row] @ basis
+        qk, pk = traj.q[row], traj.p[row]
+        assert np.abs(qk @ moved[:2]).max() < 1e-14
+        assert np.abs(moved[:2].T @ pk + qk @ moved[2:]).max() < 1e-13
+        assert np.abs(moved.T @ J @ moved - basis.T @ J @ basis).max() < 1e-12
+
+    def final(x):
+        other = integrator.integrate(x[:2], p0=x[2:], project=True, **run)
+        return np.r_[other.q[-1], other.p[-1]]
+
+    x0 = np.r_[q, p]
+    for direction in basis.T:
+        eps = 1e-6
+        expected = (final(x0 + eps * direction) - final(x0 - eps * direction)) / (2 * eps)
+        np.testing.assert_allclose(traj.tangent[-1] @ direction, expected, atol=1e-8)
+
+    def by_g(value):
+        other = integrator.integrate([0.6, -0.8], v0=[0.8, 0.6], params={g: value}, **run)
+        return np.r_[other.q[-1], other.p[-1]]
+
+    expected = (by_g(1 + 1e-6) - by_g(1 - 1e-6)) / 2e-6
+    np.testing.assert_allclose(traj.sensitivity[-1][:, 0], expected, atol=1e-8)
+
+
 def test_runs_longer_than_a_chunk_carry_the_tangent_across_joins():
     integrator = gvi.Integrator(double_pendulum(), gvi.Galerkin(2))
     long = integrator.integrate(
@@ -241,13 +284,16 @@ def test_bad_tangent_arguments_name_the_problem():
         integrator.integrate([1.0], v0=[0.0], sensitivity=["mass"], **run)
     with pytest.raises(ValueError, match="renormalize_every needs"):
         integrator.integrate([1.0], v0=[0.0], renormalize_every=5, **run)
-    rod = gvi.LagrangianSystem(
-        (v1**2 + v2**2) / 2 - q2, [q1, q2], [v1, v2], constraints=[(q1**2 + q2**2 - 1) / 2]
-    )
-    with pytest.raises(ValueError, match="constrained"):
-        gvi.Integrator(rod, gvi.Galerkin(2)).integrate(
+    moving = gvi.LagrangianSystem(
+        (v1**2 + v2**2) / 2 - q2, [q1, q2], [v1, v2], t=t,
+        constraints=[(q1**2 + q2**2 - (1 + t / 10) ** 2) / 2],
+    )  # fmt: skip
+    with pytest.raises(ValueError, match="time-dependent constraints"):
+        gvi.Integrator(moving, gvi.Galerkin(2)).integrate(
             [0.6, -0.8], v0=[0.8, 0.6], tangent=True, **run
         )
+    with pytest.raises(ValueError, match="reverse pass of constrained"):
+        gvi.gradient(gvi.Integrator(rod(), gvi.Galerkin(2)), q1, [0.6, -0.8], [0.8, 0.6], **run)
     with pytest.raises(ValueError, match="numba backend"):
         gvi.Integrator(oscillator(), gvi.Galerkin(2), backend="numpy").integrate(
             [1.0], v0=[0.0], tangent=True, **run

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from ._jit import cache_locators, compiling, discard_unreadable_loops, loop_cache_dir
 from .constrained import constrained_loop
+from .constrained_tangent import constrained_tangent_loop
 from .explicit import explicit_loop
 from .general import general_loop
 from .linear import linear_loop
@@ -34,6 +35,7 @@ __all__ = [
     "cache_locators",
     "compiling",
     "constrained_loop",
+    "constrained_tangent_loop",
     "discard_unreadable_loops",
     "explicit_loop",
     "general_loop",

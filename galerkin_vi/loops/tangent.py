@@ -41,9 +41,11 @@ applied to a cotangent :math:`\lambda_{k+1}`, is one solve with :math:`K^T`
 (:func:`galerkin_vi.newton.lu_solve_transpose`): the reverse pass of the
 discrete adjoint (:func:`adjoint_sweep`).
 
-The tangent loop solves the stage equations by exact Newton (a fresh Jacobian
-every iteration, so that the last one is the Jacobian at the solution) and
-then propagates the directions. With ``renormalize_every`` :math:`m > 0` it
+The tangent loop solves the stage equations by simplified Newton with the
+factors of the previous step's Jacobian, then assembles and factorises the
+Jacobian once at the solution (exact there, as the tangent map needs) and
+propagates the directions; those factors are the next step's iteration matrix.
+With ``renormalize_every`` :math:`m > 0` it
 orthonormalises the frame every :math:`m` steps by modified Gram–Schmidt
 (Benettin et al. 1980), accumulating :math:`\log r_{jj}`, and keeps the MEGNO
 sums of the frame's first column (Cincotta & Simó 2000):
@@ -75,6 +77,7 @@ from .common import (
     save_row,
     wrap_angles,
 )
+from .general import SIMPLIFIED_CONTRACTION
 from .linalg import (
     CONTINUE,
     CONVERGED,
@@ -462,6 +465,8 @@ def tangent_loop(
     sums[1] = megno[n_dir + MEGNO_YSUM]
     chaos = renormalize_every > 0
     banded = pattern is not None
+    inv_h = 1.0 / h
+    factored = False  # K holds the factors of the Jacobian at the last step's solution
     dpk = np.zeros(n)
     p_lost = np.zeros(n)
     C = np.zeros((s1, n))
@@ -488,19 +493,33 @@ def tangent_loop(
         tk = t0 + k * h
         if k > 0:
             extrapolate(C, C_prev, E)
-        # exact Newton: its last Jacobian is the one at the solution
+        # simplified Newton with the factors of the Jacobian at the previous step's
+        # solution (fresh ones on the first step, and at an iterate where the iteration
+        # contracts slowly); then the point tables and K once at the solution: the
+        # directions' Jacobian and the next step's iteration matrix
         status = STATUS_NEWTON_FAILED
         its = 0
         increment = np.inf
         residual = np.inf
         previous = np.inf
-        done = False
-        while its < maxiter + 1:
+        fresh = not factored
+        refreshed = False
+        while its < maxiter:
             its += 1
-            linearize(
-                fn, fnp, tk, h, qk, C, prm, b, c, Phi, D, Q, V, F, FV, HQQ, HQV, HVV, HFV,
-                TQ, TV, K, traits, pattern, couplings,
-            )  # fmt: skip
+            if fresh:
+                linearize(
+                    fn, fnp, tk, h, qk, C, prm, b, c, Phi, D, Q, V, F, FV, HQQ, HQV, HVV, HFV,
+                    TQ, TV, K, traits, pattern, couplings,
+                )  # fmt: skip
+                factored = factor_jacobian(K, piv, s, traits, pattern)
+                if not factored:
+                    status = STATUS_SINGULAR
+                    break
+                refreshed = True
+            else:
+                for i in range(r):
+                    interpolate(i, inv_h, qk, C, Phi, D, Q, V)
+                    point_gradient(fn, tk + c[i] * h, Q, V, prm, F[i], FV[i])
             residual = 0.0
             for nu in range(s):
                 for a in range(n):
@@ -512,12 +531,6 @@ def tangent_loop(
                         residual = abs(val)
             if not residual < 1e300:
                 status = STATUS_NONFINITE
-                break
-            if not factor_jacobian(K, piv, s, traits, pattern):
-                status = STATUS_SINGULAR
-                break
-            if done:
-                status = STATUS_OK
                 break
             solve_jacobian(K, piv, s, R, traits, pattern)
             increment = 0.0
@@ -533,14 +546,28 @@ def tangent_loop(
                     increment = max(increment, abs(delta))
                     scaled = max(scaled, abs(delta) / (1.0 + abs(qk[a]) + abs(updated)))
             if not moved:
-                status = STATUS_OK  # the point tables and K are those at C
+                status = STATUS_OK
                 break
             decision = newton_status(scaled, previous, 1.0, tol, its, maxiter)
             if decision == CONVERGED:
-                done = True  # once more: the tables and K at the converged C
-            elif decision != CONTINUE:
+                status = STATUS_OK
                 break
+            if decision != CONTINUE:
+                if refreshed:
+                    break
+                fresh = True  # factors of an earlier step: retry with the exact Jacobian
+                previous = np.inf
+                continue
+            fresh = its >= 2 and scaled > SIMPLIFIED_CONTRACTION * previous and scaled > tol
             previous = scaled
+        if status == STATUS_OK:
+            linearize(
+                fn, fnp, tk, h, qk, C, prm, b, c, Phi, D, Q, V, F, FV, HQQ, HQV, HVV, HFV,
+                TQ, TV, K, traits, pattern, couplings,
+            )  # fmt: skip
+            factored = factor_jacobian(K, piv, s, traits, pattern)
+            if not factored:
+                status = STATUS_SINGULAR
         slot = k // save_every
         if its > iterations_out[slot]:
             iterations_out[slot] = min(its, 255)

@@ -169,6 +169,18 @@ def parameter_addresses(system, parameters: tuple) -> NDArray[np.int64]:
     return system.derived.get(("parameter_points", parameters), build)
 
 
+def tangent_loop_parts(spec: RunSpec) -> tuple:
+    """``(loop, before, after)`` of the tangent loop for ``spec``'s system (as
+    :meth:`RunSpec.loop_parts`): the constrained one, or the general one."""
+    from .. import loops
+
+    if spec.path == "constrained":
+        _, before, after = spec.loop_parts("constrained")
+        return loops.constrained_tangent_loop, before, after
+    _, before, after = spec.loop_parts("newton")
+    return loops.tangent_loop, before, after
+
+
 class TangentRunner:
     """One compiled call of the tangent loop per chunk, the variations carried across."""
 
@@ -188,11 +200,21 @@ class TangentRunner:
             frame, upper = np.linalg.qr(self.T)
             self.T = np.ascontiguousarray(frame * np.sign(np.diag(upper)))
         self.fnp = np.zeros(1, dtype=np.int64)
+        if system.m and request.parameters:
+            inside = [
+                p
+                for p in request.parameters
+                if any(sp.sympify(g).has(p) for g in system.constraints)
+            ]
+            if inside:
+                raise ValueError(
+                    f"sensitivity to {', '.join(map(str, inside))}: parameters inside the "
+                    "constraints are not supported (their derivatives are not generated)"
+                )
         if request.parameters:
             self.fnp = parameter_addresses(system, request.parameters)
 
     def __call__(self, segment: Segment) -> tuple[Trajectory, LoopResult]:
-        from ..loops import tangent_loop
         from ..loops.readiness import ensure_loops
 
         ensure_loops()
@@ -207,9 +229,9 @@ class TangentRunner:
         growth_out = np.zeros((chaos_rows, r))
         megno_out = np.zeros((chaos_rows, 2))
         s1 = spec.method.tables.d.shape[0]
-        loop, before, after = spec.loop_parts("newton")
+        loop, before, after = tangent_loop_parts(spec)
         result = LoopResult(
-            *tangent_loop(
+            *loop(
                 *before, self.fnp, *segment.arguments, *after, self.T, self.S,
                 request.renormalize_every, self.t_origin, self.chaos,
                 np.zeros((0, s1, system.n)), *out.arrays, T_out, S_out, growth_out, megno_out,
@@ -312,3 +334,17 @@ def recorded_steps(spec: RunSpec, segment: Segment, fnp: NDArray[np.int64]) -> R
         segment.prm, spec.order,
     )  # fmt: skip
     return Recording(traj, out.q[: result.saved].copy(), stages[: result.steps], result)
+
+
+def constrained_tangent_spec(spec: RunSpec) -> RunSpec:
+    """``spec`` of a constrained system, checked for what its tangent map differentiates:
+    constraints that depend on time (their rate's derivative in q is not generated)
+    are refused with the reason."""
+    system = spec.system
+    time = system.time_symbol
+    if time is not None and any(sp.sympify(g).has(time) for g in system.constraints):
+        raise ValueError(
+            "tangent and sensitivity of systems with time-dependent constraints are not "
+            "supported: the derivative of the constraint rate dg/dt in q is not generated"
+        )
+    return spec

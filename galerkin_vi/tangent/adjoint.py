@@ -154,6 +154,12 @@ def gradient(
     loss = loss if isinstance(loss, Loss) else Loss(terminal=loss)
     if not isinstance(n_steps, int | np.integer) or n_steps < 1:
         raise ValueError(f"n_steps must be a positive int, got {n_steps!r}")
+    if system.m:
+        raise ValueError(
+            "gradient: the reverse pass of constrained steps (the momentum projection's "
+            "transpose) is not built; forward mode works: integrate(..., tangent=..., "
+            "sensitivity=...) gives the same derivatives"
+        )
     spec = integrator.tangent_run_spec
     prm = system.parameter_vector(params)
     thetas = tuple(system.params) if "params" in wrt else ()
