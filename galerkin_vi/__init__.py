@@ -29,6 +29,7 @@ from .model.system import LagrangianSystem
 from .run.events import Event
 from .run.status import RunStatus, SolverResult, SolverStatus
 from .run.trajectory import Trajectory
+from .tangent import Gradient, Loss, gradient
 from .tools.choice import MethodChoice, choose_method
 from .tools.verification import OrderResult, measure_order
 
@@ -43,9 +44,11 @@ __all__ = [
     "DegenerateLagrangianError",
     "Event",
     "Galerkin",
+    "Gradient",
     "InstabilityWarning",
     "Integrator",
     "LagrangianSystem",
+    "Loss",
     "MethodChoice",
     "OrderReductionWarning",
     "OptimalControl",
@@ -63,6 +66,7 @@ __all__ = [
     "follow_family",
     "gauss_legendre",
     "gauss_lobatto",
+    "gradient",
     "measure_order",
     "solve_bvp",
     "solve_optimal_control",

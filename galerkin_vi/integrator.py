@@ -3,7 +3,7 @@ r"""The integrator: a system, a method and a backend, run over many steps."""
 from __future__ import annotations
 
 import numbers
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from functools import cached_property
 
 import numpy as np
@@ -20,6 +20,7 @@ from .run.loop_choice import loop_path
 from .run.smooth import integrate_smooth
 from .run.spec import RunSpec, compiled_run_spec, loop_traits, reference_run_spec
 from .run.stream import check_stream_arguments, stream_chunks
+from .run.tangent import variation_request
 from .run.trajectory import Trajectory
 
 __all__ = ["Integrator"]
@@ -200,6 +201,21 @@ class Integrator:
             constant_mass=self.uses_constant_mass,
         )
 
+    @cached_property
+    def tangent_run_spec(self) -> RunSpec:
+        """The run spec of the general Newton loop, which carries the tangent map."""
+        if self.backend != "numba":
+            raise ValueError("tangent and sensitivity need the numba backend (compiled loops)")
+        if self.system.m:
+            raise ValueError(
+                "tangent and sensitivity of constrained systems are not supported: the "
+                "tangent map must also differentiate the momentum projection"
+            )
+        return compiled_run_spec(
+            self.system, self.method, "newton", self.tol, self.maxiter, self._summary,
+            self._points, constant_mass=self.uses_constant_mass,
+        )  # fmt: skip
+
     def compiled_point_functions(self, names: tuple[str, ...]) -> tuple[tuple[int, ...], tuple]:
         """(addresses, traits) of the system's compiled point functions ``names``.
 
@@ -238,6 +254,9 @@ class Integrator:
         progress: bool | None = None,
         t_eval: ArrayLike | None = None,
         contact_mode: str = "auto",
+        tangent: bool | ArrayLike | None = None,
+        sensitivity: Sequence[sp.Symbol | str] | None = None,
+        renormalize_every: int = 0,
     ) -> Trajectory:
         """Integrate ``n_steps`` steps of size ``h`` from ``q0`` and ``v0`` or ``p0``.
 
@@ -311,6 +330,19 @@ class Integrator:
             ``CONTACT_PERSISTS`` where they cannot go on (``"event"``); or a
             complementarity problem in every step, impacts still cut out of
             the steps exactly (``"time-stepping"``).
+        tangent : True or array_like of shape (2n, r), optional
+            Carry the tangent map :math:`\Phi_k = \partial(q_k, p_k)/\partial(q_0, p_0)`
+            (``True``) or its action on r directions V: ``Trajectory.tangent``,
+            shape (rows, 2n, r). Implicit function theorem on each step's stage
+            equations with their exact Jacobian at the solution
+            (:mod:`galerkin_vi.loops.tangent`): one solve per direction and step.
+        sensitivity : sequence of parameter symbols or names, optional
+            Carry :math:`\partial(q_k, p_k)/\partial\theta`: ``Trajectory.sensitivity``,
+            shape (rows, 2n, P).
+        renormalize_every : int
+            With ``tangent``: orthonormalise the frame every so many steps
+            (Benettin's method) and keep the log-growths and MEGNO
+            (``Trajectory.variations``; :func:`galerkin_vi.lyapunov_spectrum`).
 
         Returns
         -------
@@ -350,6 +382,9 @@ class Integrator:
             return integrate_with_contacts(self, q0, v0, p0, contact_mode=contact_mode, **run)
         if contact_mode != "auto":
             raise ValueError(f"contact_mode={contact_mode!r} needs a system with contacts")
+        request = variation_request(self.system, tangent, sensitivity, renormalize_every)
+        if request is not None:
+            return integrate_smooth(self.tangent_run_spec, q0, v0, p0, variations=request, **run)
         return integrate_smooth(self.run_spec, q0, v0, p0, **run)
 
     def stream(

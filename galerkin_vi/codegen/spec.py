@@ -31,6 +31,7 @@ __all__ = [
     "SpecSummary",
     "summarize",
     "kernel_spec",
+    "parameter_derivative_spec",
     "signature",
     "sparsity_pattern",
     "use_banded",
@@ -153,15 +154,7 @@ def use_banded(n: int, half_bandwidth: int) -> bool:
 def kernel_spec(system: LagrangianSystem) -> KernelSpec:
     """Collect the expressions of ``system`` with symbols renamed to array slots."""
     n = system.n
-    rename: dict[sp.Symbol, sp.Symbol] = {}
-    for a, s in enumerate(system.q):
-        rename[s] = sp.Symbol(f"q[{a}]", real=True)
-    for a, s in enumerate(system.v):
-        rename[s] = sp.Symbol(f"v[{a}]", real=True)
-    for j, s in enumerate(system.params):
-        rename[s] = sp.Symbol(f"prm[{j}]", real=True)
-    if system.t is not None:
-        rename[system.t] = sp.Symbol("t", real=True)
+    rename = _renaming(system)
     p = system.pieces
     has_lqv = not system.structure.zero_Lqv
     pattern = sparsity_pattern(p, n, has_lqv)
@@ -215,6 +208,48 @@ def kernel_spec(system: LagrangianSystem) -> KernelSpec:
         and all(a == b for (a, b), e in p.Lvv.todok().items() if e != 0),
         **_constraint_entries(system, rename),
     )
+
+
+def parameter_derivative_spec(system: LagrangianSystem, params) -> KernelSpec:
+    r"""The derivatives of the stage equations' point values with respect to parameters.
+
+    A spec whose ``point_gradient`` writes :math:`\partial (L_q + f)_a/\partial\theta_j`
+    into ``Lq[a P + j]`` and :math:`\partial (L_v)_a/\partial\theta_j` into
+    ``Lv[a P + j]`` for the ``P`` parameters ``params`` (symbols of ``system.params``,
+    in that order): the :math:`R_\theta` of the tangent map
+    (:mod:`galerkin_vi.loops.tangent`). Compiled on demand, as a cache entry of its own.
+    """
+    base = kernel_spec(system)
+    n = system.n
+    rename = _renaming(system)
+    pieces = system.pieces
+    P = len(params)  # noqa: N806
+    entries = []
+    for name, column in (("Lq", pieces.force), ("Lv", pieces.Lv)):
+        for a in range(n):
+            for j, theta in enumerate(params):
+                e = sp.diff(column[a], theta)
+                if e != 0:
+                    entries.append((f"{name}[{a * P + j}]", e.xreplace(rename)))
+    return KernelSpec(
+        n=n, n_params=base.n_params, autonomous=base.autonomous, has_Lqv=base.has_Lqv,
+        lagrangian=sp.Integer(0), gradient_entries=tuple(entries), hessian_entries=(),
+        periodic=base.periodic,
+    )  # fmt: skip
+
+
+def _renaming(system: LagrangianSystem) -> dict:
+    """The user's symbols to the generated code's array slots."""
+    rename: dict[sp.Symbol, sp.Symbol] = {}
+    for a, s in enumerate(system.q):
+        rename[s] = sp.Symbol(f"q[{a}]", real=True)
+    for a, s in enumerate(system.v):
+        rename[s] = sp.Symbol(f"v[{a}]", real=True)
+    for j, s in enumerate(system.params):
+        rename[s] = sp.Symbol(f"prm[{j}]", real=True)
+    if system.t is not None:
+        rename[system.t] = sp.Symbol("t", real=True)
+    return rename
 
 
 def _constraint_entries(system: LagrangianSystem, rename: dict) -> dict:

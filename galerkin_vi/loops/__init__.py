@@ -26,9 +26,11 @@ from .explicit import explicit_loop
 from .general import general_loop
 from .linear import linear_loop
 from .stage_form import stage_form_loop
+from .tangent import adjoint_sweep, tangent_loop
 from .varying_mass import varying_mass_loop
 
 __all__ = [
+    "adjoint_sweep",
     "cache_locators",
     "compiling",
     "constrained_loop",
@@ -38,5 +40,6 @@ __all__ = [
     "linear_loop",
     "loop_cache_dir",
     "stage_form_loop",
+    "tangent_loop",
     "varying_mass_loop",
 ]

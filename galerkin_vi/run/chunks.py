@@ -200,8 +200,12 @@ def _stitched(parts: list[Trajectory], t0: float, h: float) -> Trajectory:
     if head.q_reduced is not None:
         reduced = np.concatenate([head.q_reduced] + [p.q_reduced[1:] for p in rest])
     t = joined("t")
+    variations = head.variations
+    if variations is not None:
+        variations = variations.joined([p.variations for p in parts])
     return replace(
         head,
+        variations=variations,
         t=t0 + np.round((t - t0) / h) * h,
         q=joined("q"),
         p=joined("p"),

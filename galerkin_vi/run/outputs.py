@@ -90,6 +90,7 @@ def without_first_row(traj: Trajectory) -> Trajectory:
     """The trajectory minus its first saved row (a chunk's start, the previous chunk's end)."""
     return replace(
         traj,
+        variations=None if traj.variations is None else traj.variations.rows(slice(1, None)),
         t=traj.t[1:],
         q=traj.q[1:],
         p=traj.p[1:],

@@ -33,9 +33,13 @@ __all__ = ["integrate_smooth", "one_step"]
 def integrate_smooth(
     spec: RunSpec, q0, v0, p0, *, h, n_steps=None, t0=0.0, params=None, save_every=1,
     project=False, on_failure="warn", dense_output=False, t_span=None, events=None,
-    progress=None, t_eval=None, stacklevel: int = 4,
+    progress=None, t_eval=None, variations=None, stacklevel: int = 4,
 ) -> Trajectory:  # fmt: skip
-    """:meth:`Integrator.integrate` of a system without contacts (its parameters)."""
+    """:meth:`Integrator.integrate` of a system without contacts (its parameters).
+
+    ``variations`` (:class:`~galerkin_vi.run.tangent.VariationRequest`): run with the
+    tangent map; ``spec`` is then the general Newton loop's.
+    """
     system = spec.system
     check_failure_mode(on_failure)
     plan = run_plan(h, n_steps, t_span, t0, save_every)
@@ -46,6 +50,12 @@ def integrate_smooth(
     event_list = as_events(events)
     event_functions = [event_function(e, system) for e in event_list]
     times = requested_times(t_eval, plan.t0, plan.t_end, plan.h)
+    if variations is not None and times is not None:
+        raise ValueError(
+            "t_eval cannot be combined with tangent or sensitivity: the tangent map is "
+            "the derivative of the step map, defined at the steps; use save_every, or "
+            "t_span with a step that lands on the times you need"
+        )
     if event_list or times is not None:
         dense_output = True
     if dense_output and plan.save_every != 1:
@@ -60,8 +70,13 @@ def integrate_smooth(
     def restart(q, p, t):
         return initial_state(spec, q, None, p, t, prm)
 
+    run_chunk = lambda segment: run_once(spec, segment)  # noqa: E731
+    if variations is not None:
+        from .tangent import TangentRunner
+
+        run_chunk = TangentRunner(spec, variations, plan.t0)
     traj, result, interrupted = run_in_chunks(
-        first, lambda segment: run_once(spec, segment), restart, progress,
+        first, run_chunk, restart, progress,
         terminal_stop(event_list, event_functions, prm),
     )  # fmt: skip
     traj, failure = _reported(traj, result, plan, interrupted)

@@ -59,6 +59,11 @@ class Trajectory(SolverResult):
     t_events, q_events, v_events, p_events : list of ndarray or None
         With ``integrate(..., events=...)``: per event, the times (m,) and
         the positions, velocities and momenta (m, n) of its occurrences.
+    variations : Variations or None
+        With ``integrate(..., tangent=..., sensitivity=...)``: the tangent map
+        and parameter sensitivities at the saved rows, and the chaos
+        indicators of a renormalised frame (:class:`galerkin_vi.run.tangent.Variations`;
+        ``tangent`` and ``sensitivity`` are also attributes of the trajectory).
     impacts : list of Impact or None
         For a system with contacts: every isolated impact (located on a step,
         in either mode), in time order
@@ -88,9 +93,22 @@ class Trajectory(SolverResult):
     p_events: list[NDArray[np.float64]] | None = None
     impacts: list | None = None
     contact_forces: object | None = None
+    variations: object | None = None
 
     def __len__(self) -> int:
         return self.t.shape[0]
+
+    @property
+    def tangent(self) -> NDArray[np.float64] | None:
+        r""":math:`\partial(q_k, p_k)/\partial(q_0, p_0)\,V` at every saved row, shape
+        (rows, 2n, r) (``integrate(..., tangent=...)``; :mod:`galerkin_vi.run.tangent`)."""
+        return None if self.variations is None else self.variations.tangent
+
+    @property
+    def sensitivity(self) -> NDArray[np.float64] | None:
+        r""":math:`\partial(q_k, p_k)/\partial\theta` at every saved row, shape (rows, 2n, P)
+        (``integrate(..., sensitivity=[...])``)."""
+        return None if self.variations is None else self.variations.sensitivity
 
     @property
     def mean_newton_iterations(self) -> float:

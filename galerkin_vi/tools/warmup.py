@@ -22,6 +22,9 @@ __all__ = ["BOUNDARY_VALUE", "RUN_SECONDS", "main", "warm_up"]
 #: the label of the run that compiles the Newton iteration of boundary-value problems
 #: (:mod:`galerkin_vi.loops.action`) instead of a time loop
 BOUNDARY_VALUE = "boundary-value problem"
+#: the label prefix of the runs that compile the tangent loop and the adjoint's reverse
+#: pass (:mod:`galerkin_vi.loops.tangent`)
+TANGENT = "tangent map"
 
 
 def _runs():
@@ -32,7 +35,8 @@ def _runs():
     general loop (dense or banded) x (with or without L_qv / f_v couplings), linear
     loop (dense or banded), constrained loop, explicit loop (diagonal or full mass
     matrix) x (angles or none) x (autonomous or time-dependent), the varying-mass
-    loop. Each implicit variant
+    loop, the tangent loop and the discrete adjoint's reverse pass (dense or banded) x
+    (with or without couplings). Each implicit variant
     is also run as a two-member ensemble (:mod:`galerkin_vi.loops.members`). The last
     run solves a boundary-value problem (:mod:`galerkin_vi.loops.action`).
     """
@@ -94,6 +98,10 @@ def _runs():
         ("explicit, time, full M", timed_angles, g1, True, *two),
         ("explicit, time, full M, no angles", timed_coupled, g1, True, *two),
         ("varying mass", gyroscopic, Galerkin(3, gauss_legendre(3)), True, *one),
+        (f"{TANGENT}", pendulum, g2, True, *one),
+        (f"{TANGENT}, couplings", gyroscopic, g2, True, *one),
+        (f"{TANGENT}, banded", chain, g2, True, *chain0),
+        (f"{TANGENT}, banded, couplings", damped_chain, g2, True, *chain0),
         (BOUNDARY_VALUE, pendulum, g2, True, *one),
     ]
 
@@ -122,6 +130,10 @@ RUN_SECONDS = (
     3.0,
     1.5,
     10.0,
+    20.0,
+    20.0,
+    20.0,
+    20.0,
     31.0,
 )
 
@@ -165,6 +177,12 @@ def _warm_up_one(run: tuple) -> float:
     start = time.perf_counter()
     if label == BOUNDARY_VALUE:
         solve_bvp(system, method, q0, v0, (0.0, 0.1), 4, backend="numba")
+    elif label.startswith(TANGENT):
+        from ..tangent.adjoint import warm_up_adjoint
+
+        integrator = Integrator(system, method, specialize=specialize)
+        integrator.integrate(q0, v0=v0, h=0.01, n_steps=2, tangent=True, on_failure="raise")
+        warm_up_adjoint(integrator, q0, v0)
     else:
         integrator = Integrator(system, method, specialize=specialize)
         integrator.integrate(q0, v0=v0, h=0.01, n_steps=2, on_failure="raise")

@@ -1,0 +1,271 @@
+r"""Runs with the tangent map: variations of the state and of the parameters along a run.
+
+``integrate(..., tangent=..., sensitivity=..., renormalize_every=...)`` runs the
+general Newton loop's map with its tangent map (:mod:`galerkin_vi.loops.tangent`):
+the same discrete flow as every other loop of the system (the same discrete
+Lagrangian; the loops differ in how they solve the stage equations), whose
+derivative needs the exact stage Jacobian at the solution. The state is
+:math:`x = (q, p)`; the results are
+
+- ``tangent``: :math:`\partial x_k/\partial x_0\, V` at every saved row,
+  :math:`V` the identity (``tangent=True``) or the given directions;
+- ``sensitivity``: :math:`\partial x_k/\partial\theta` for the parameters listed;
+- with ``renormalize_every = m``: the frame orthonormalised every m steps, the
+  accumulated :math:`\log r_{jj}` and MEGNO of its first column.
+
+:class:`VariationRequest` is what the user asked for, checked;
+:class:`Variations` what a run returns in :attr:`Trajectory.variations`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+import sympy as sp
+from numpy.typing import NDArray
+
+from ..loops.abi import LoopResult
+from .outputs import RunOutputs
+from .spec import RunSpec, Segment
+from .trajectory import Trajectory
+
+__all__ = ["VariationRequest", "Variations", "variation_request"]
+
+
+@dataclass(frozen=True, eq=False)
+class Variations:
+    r"""The variations a run carried, one entry per saved row.
+
+    Attributes
+    ----------
+    tangent : ndarray, shape (rows, 2n, r), or None
+        :math:`\Phi_k V`, :math:`\Phi_k = \partial(q_k, p_k)/\partial(q_0, p_0)`
+        (renormalised frames with ``renormalize_every``).
+    sensitivity : ndarray, shape (rows, 2n, P), or None
+        :math:`\partial(q_k, p_k)/\partial\theta`.
+    parameters : tuple of sympy.Symbol
+        :math:`\theta`, in the order of the sensitivity's columns.
+    log_growth : ndarray, shape (rows, r), or None
+        :math:`\sum \log r_{jj}` of the renormalisations up to each row.
+    megno, megno_mean : ndarray, shape (rows,), or None
+        MEGNO :math:`Y(t_k)` of the frame's first column and its running mean.
+    """
+
+    tangent: NDArray[np.float64] | None
+    sensitivity: NDArray[np.float64] | None
+    parameters: tuple
+    log_growth: NDArray[np.float64] | None = None
+    megno: NDArray[np.float64] | None = None
+    megno_mean: NDArray[np.float64] | None = None
+
+    FIELDS = ("tangent", "sensitivity", "log_growth", "megno", "megno_mean")
+
+    def rows(self, index) -> Variations:
+        """The variations at the saved rows ``index`` (a slice or an index array)."""
+        return replace(self, **{f: _take(getattr(self, f), index) for f in self.FIELDS})
+
+    @staticmethod
+    def joined(parts: Sequence[Variations]) -> Variations:
+        """One record from consecutive chunks' (each later chunk's first row is the join)."""
+        head = parts[0]
+        changes = {}
+        for f in Variations.FIELDS:
+            if getattr(head, f) is not None:
+                changes[f] = np.concatenate(
+                    [getattr(head, f)] + [getattr(p, f)[1:] for p in parts[1:]]
+                )
+        return replace(head, **changes)
+
+
+def _take(array, index):
+    return None if array is None else array[index]
+
+
+@dataclass(frozen=True)
+class VariationRequest:
+    """What a run is asked to carry: start directions, parameters, renormalisation."""
+
+    directions: NDArray[np.float64]  # (2n, r)
+    parameters: tuple
+    parameter_index: tuple[int, ...]
+    renormalize_every: int
+    keep_tangent: bool
+
+    @property
+    def sensitivities(self) -> int:
+        return len(self.parameters)
+
+
+def variation_request(system, tangent, sensitivity, renormalize_every) -> VariationRequest | None:
+    """Check the run options of the tangent map; None when none is asked for."""
+    n = system.n
+    if renormalize_every is None:
+        renormalize_every = 0
+    if isinstance(renormalize_every, bool) or not isinstance(renormalize_every, int | np.integer):
+        raise TypeError(f"renormalize_every must be an int, got {renormalize_every!r}")
+    if renormalize_every < 0:
+        raise ValueError(f"renormalize_every must be >= 0, got {renormalize_every}")
+    if tangent is None or tangent is False:
+        if renormalize_every:
+            raise ValueError("renormalize_every needs tangent=True or tangent=V")
+        directions = np.zeros((2 * n, 0))
+    elif tangent is True:
+        directions = np.eye(2 * n)
+    else:
+        directions = np.array(tangent, dtype=float, ndmin=1)
+        if directions.ndim == 1:
+            directions = directions[:, None]
+        if directions.ndim != 2 or directions.shape[0] != 2 * n or directions.shape[1] == 0:
+            raise ValueError(
+                f"tangent must be True or an array of shape (2n, r) = ({2 * n}, r), r >= 1 "
+                f"(columns: variations of (q0, p0)), got shape {np.shape(tangent)}"
+            )
+        if not np.all(np.isfinite(directions)):
+            raise ValueError("tangent has entries that are not finite")
+    parameters, index = _parameters(system, sensitivity)
+    if directions.shape[1] == 0 and not parameters:
+        return None
+    return VariationRequest(
+        np.ascontiguousarray(directions), parameters, index, int(renormalize_every),
+        keep_tangent=directions.shape[1] > 0,
+    )  # fmt: skip
+
+
+def _parameters(system, sensitivity) -> tuple[tuple, tuple[int, ...]]:
+    if sensitivity is None:
+        return (), ()
+    if isinstance(sensitivity, str | sp.Symbol):
+        sensitivity = [sensitivity]
+    by_name = {str(s): s for s in system.params}
+    chosen = []
+    for item in sensitivity:
+        symbol = by_name.get(str(item)) if not isinstance(item, sp.Symbol) else item
+        if symbol not in system.params:
+            raise ValueError(
+                f"sensitivity: {item!r} is not a parameter of the system "
+                f"(its parameters: {', '.join(map(str, system.params)) or 'none'})"
+            )
+        if symbol in chosen:
+            raise ValueError(f"sensitivity lists {symbol} twice")
+        chosen.append(symbol)
+    if not chosen:
+        raise ValueError("sensitivity is empty: list parameter symbols, or leave it None")
+    params = list(system.params)
+    return tuple(chosen), tuple(params.index(s) for s in chosen)
+
+
+def parameter_addresses(system, parameters: tuple) -> NDArray[np.int64]:
+    """Point-function addresses of the parameter derivatives (slot GRADIENT), compiled once
+    per system and parameter list and kept with the system's derived data."""
+    from ..codegen.compiled import load_point_functions, point_key
+    from ..codegen.spec import parameter_derivative_spec
+
+    def build():
+        spec = parameter_derivative_spec(system, parameters)
+        return load_point_functions(spec, point_key(spec)).addresses(("point_gradient",))
+
+    return system.derived.get(("parameter_points", parameters), build)
+
+
+class TangentRunner:
+    """One compiled call of the tangent loop per chunk, the variations carried across."""
+
+    def __init__(self, spec: RunSpec, request: VariationRequest, t_origin: float) -> None:
+        system = spec.system
+        self.spec, self.request, self.t_origin = spec, request, t_origin
+        n = system.n
+        self.T = request.directions.copy()
+        self.S = np.zeros((2 * n, request.sensitivities))
+        self.chaos = np.zeros(self.T.shape[1] + 2)
+        if request.renormalize_every:
+            # Benettin's frame starts orthonormal; its own lengths are not growth
+            frame, upper = np.linalg.qr(self.T)
+            self.T = np.ascontiguousarray(frame * np.sign(np.diag(upper)))
+        self.fnp = np.zeros(1, dtype=np.int64)
+        if request.parameters:
+            self.fnp = parameter_addresses(system, request.parameters)
+
+    def __call__(self, segment: Segment) -> tuple[Trajectory, LoopResult]:
+        from ..loops import tangent_loop
+        from ..loops.readiness import ensure_loops
+
+        ensure_loops()
+        spec, request = self.spec, self.request
+        system = spec.system
+        out = RunOutputs.allocate(segment.n_steps, segment.save_every, system.n, spec.periodic)
+        rows = out.t.shape[0]
+        r, n2 = self.T.shape[1], 2 * system.n
+        chaos_rows = rows if request.renormalize_every else 0
+        T_out = np.zeros((rows, n2, r))  # noqa: N806
+        S_out = np.zeros((rows, n2, self.S.shape[1]))  # noqa: N806
+        growth_out = np.zeros((chaos_rows, r))
+        megno_out = np.zeros((chaos_rows, 2))
+        s1 = spec.method.tables.d.shape[0]
+        loop, before, after = spec.loop_parts("newton")
+        result = LoopResult(
+            *tangent_loop(
+                *before, self.fnp, *segment.arguments, *after, self.T, self.S,
+                request.renormalize_every, self.t_origin, self.chaos,
+                np.zeros((0, s1, system.n)), *out.arrays, T_out, S_out, growth_out, megno_out,
+                out.iterations, out.iteration_total,
+            )
+        )  # fmt: skip
+        traj = out.trajectory(
+            result.status, result.steps, result.saved, result.worst_residual,
+            segment.save_every, system, segment.prm, spec.order,
+        )  # fmt: skip
+        saved = result.saved
+        variations = Variations(
+            tangent=T_out[:saved] if request.keep_tangent else None,
+            sensitivity=S_out[:saved] if request.parameters else None,
+            parameters=request.parameters,
+            log_growth=growth_out[:saved] if chaos_rows else None,
+            megno=megno_out[:saved, 0] if chaos_rows else None,
+            megno_mean=megno_out[:saved, 1] if chaos_rows else None,
+        )
+        return replace(traj, variations=variations), result
+
+
+@dataclass(frozen=True)
+class Recording:
+    """The states and control points of every step of a segment, for the reverse pass.
+
+    ``q_kept`` are the positions as the loop keeps them (angles reduced), at which
+    the reverse pass evaluates; ``trajectory`` has the continuous ones.
+    """
+
+    trajectory: Trajectory
+    q_kept: NDArray[np.float64]
+    stages: NDArray[np.float64]
+    result: LoopResult
+
+
+def recorded_steps(spec: RunSpec, segment: Segment, fnp: NDArray[np.int64]) -> Recording:
+    """Run ``segment`` (saving every step) through the tangent loop, recording each step's
+    control points; no directions are carried."""
+    from ..loops import tangent_loop
+    from ..loops.readiness import ensure_loops
+
+    ensure_loops()
+    system = spec.system
+    n, n_steps = system.n, segment.n_steps
+    out = RunOutputs.allocate(n_steps, 1, n, spec.periodic)
+    rows = out.t.shape[0]
+    stages = np.zeros((n_steps, spec.method.tables.d.shape[0], n))
+    _, before, after = spec.loop_parts("newton")
+    empty = np.zeros((2 * n, 0))
+    result = LoopResult(
+        *tangent_loop(
+            *before, fnp, *segment._replace(save_every=1).arguments, *after, empty, empty.copy(),
+            0, segment.t0, np.zeros(2), stages, *out.arrays, np.zeros((rows, 2 * n, 0)),
+            np.zeros((rows, 2 * n, 0)), np.zeros((0, 0)), np.zeros((0, 2)), out.iterations,
+            out.iteration_total,
+        )
+    )  # fmt: skip
+    traj = out.trajectory(
+        result.status, result.steps, result.saved, result.worst_residual, 1, system,
+        segment.prm, spec.order,
+    )  # fmt: skip
+    return Recording(traj, out.q[: result.saved].copy(), stages[: result.steps], result)

@@ -1,0 +1,366 @@
+r"""Exact gradients of a loss through a run: the discrete adjoint, with checkpointing.
+
+For a loss :math:`\Lambda = \varphi(t_N, x_N) + \sum_{k=0}^{N-1} \ell(t_k, x_k)` of the
+states :math:`x_k = (q_k, p_k)` of a run (SymPy expressions in :math:`t, q, p`
+and the parameters :math:`\theta`), the reverse pass
+
+.. math::
+
+    \lambda_N = \nabla_x\varphi(x_N),\qquad
+    \lambda_k = \Big(\frac{\partial x_{k+1}}{\partial x_k}\Big)^T\lambda_{k+1}
+        + \nabla_x \ell(x_k),\qquad
+    \nabla_\theta\Lambda = \sum_{k<N}\Big(\frac{\partial x_{k+1}}{\partial\theta}\Big)^T
+        \lambda_{k+1} + \partial_\theta\varphi + \sum_k \partial_\theta\ell
+
+gives :math:`\nabla_{x_0}\Lambda = \lambda_0` at the cost of one transposed step
+per step (:func:`galerkin_vi.loops.tangent.adjoint_sweep`: one factorisation
+of the stage Jacobian and one solve with its transpose). For a symplectic
+step this is the discretisation of the continuous adjoint equations by the
+same method (Sanz-Serna, SIAM Rev. 58 (2016) 3–33), and
+:math:`\langle\lambda_k, \delta x_k\rangle` is the same at every k, which
+tests it against the tangent map to round-off.
+
+**Checkpointing.** The reverse pass needs each step's control points. A run of
+N steps is cut into segments of :math:`M \approx \sqrt N` steps; the forward
+pass keeps only the segments' first states, and the reverse pass runs each
+segment again from its first state (the same compiled call, so the same
+steps bit for bit) recording its control points, then sweeps it backwards.
+Memory :math:`O(\sqrt N)` states and stages, cost one extra forward pass
+(the two-level scheme that Griewank's revolve generalises).
+
+With the initial velocity given, :math:`p_0 = L_v(t_0, q_0, v_0; \theta)`, and the
+gradients with respect to :math:`q_0`, :math:`v_0` and :math:`\theta` take its
+derivatives: :math:`\nabla_{v_0}\Lambda = L_{vv}\lambda_{p}`,
+:math:`\nabla_{q_0}\Lambda = \lambda_q + L_{vq}^T\lambda_p`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import sympy as sp
+from numpy.typing import NDArray
+
+from ..run.spec import Segment
+from ..run.start import initial_state
+from ..run.status import RunStatus, SolverResult, loop_status
+from ..run.tangent import parameter_addresses, recorded_steps
+from ..run.trajectory import Trajectory
+
+__all__ = ["Gradient", "Loss", "gradient", "warm_up_adjoint"]
+
+#: runs of at most this many steps are recorded whole (no checkpoints)
+RECORD_WHOLE = 2048
+
+WRT = ("q0", "v0", "p0", "params")
+
+
+@dataclass(frozen=True)
+class Loss:
+    r"""A loss :math:`\varphi(t_N, q_N, p_N) + \sum_{k<N} \ell(t_k, q_k, p_k)`.
+
+    Parameters
+    ----------
+    terminal, running : sympy.Expr, optional
+        :math:`\varphi` and :math:`\ell`, in the system's time, coordinates and
+        parameters, and the momentum symbols ``p``. A sum approximating an
+        integral :math:`\int \ell\,dt` includes the step: ``running = h * ell``.
+    p : sequence of sympy.Symbol, optional
+        The symbols that stand for the momenta :math:`p_1..p_n` in the
+        expressions (none if they do not appear).
+    """
+
+    terminal: sp.Expr | None = None
+    running: sp.Expr | None = None
+    p: Sequence[sp.Symbol] = field(default=())
+
+
+@dataclass(frozen=True, eq=False)
+class Gradient(SolverResult):
+    r"""The loss and its gradient with respect to the initial state and the parameters.
+
+    Attributes
+    ----------
+    value : float
+        :math:`\Lambda`.
+    q0, v0, p0 : ndarray or None
+        :math:`\nabla_{q_0}\Lambda`, and :math:`\nabla_{v_0}\Lambda` (initial
+        velocity given) or :math:`\nabla_{p_0}\Lambda` (momentum given); None when
+        not asked for in ``wrt``.
+    params : dict
+        :math:`\partial\Lambda/\partial\theta` by parameter symbol.
+    adjoint : ndarray, shape (2n,)
+        :math:`\lambda_0`, the cotangent of :math:`(q_0, p_0)`.
+    trajectory : Trajectory
+        The forward run's segment starts and its last state.
+    status : RunStatus
+    message : str
+    """
+
+    value: float
+    q0: NDArray[np.float64] | None
+    v0: NDArray[np.float64] | None
+    p0: NDArray[np.float64] | None
+    params: dict
+    adjoint: NDArray[np.float64]
+    trajectory: Trajectory
+    status: RunStatus = RunStatus.COMPLETED
+    message: str = "the gradient of the whole run"
+
+
+def gradient(
+    integrator,
+    loss: Loss | sp.Expr,
+    q0,
+    v0=None,
+    p0=None,
+    *,
+    h: float,
+    n_steps: int,
+    t0: float = 0.0,
+    params=None,
+    wrt: Sequence[str] = ("q0", "v0", "params"),
+    checkpoint_every: int | None = None,
+) -> Gradient:
+    r"""The gradient of ``loss`` along the run ``integrator.integrate(q0, v0 or p0, h, n_steps)``
+    by the discrete adjoint (module docstring).
+
+    Parameters
+    ----------
+    integrator : Integrator
+    loss : Loss or sympy.Expr
+        A bare expression is the terminal term.
+    q0, v0, p0 : array_like
+        The initial state (exactly one of ``v0``, ``p0``).
+    h, n_steps, t0, params
+        As for :meth:`Integrator.integrate` (``params``: parameter values).
+    wrt : sequence of {"q0", "v0", "p0", "params"}
+        What to differentiate with respect to; ``"v0"`` needs ``v0`` given,
+        ``"p0"`` needs ``p0``; ``"params"`` means every parameter of the system.
+    checkpoint_every : int, optional
+        Steps per recorded segment; default :math:`\lceil\sqrt N\rceil` for runs
+        over ``RECORD_WHOLE`` steps, else the whole run.
+
+    Returns
+    -------
+    Gradient
+        ``success`` False (and the gradient of nothing) if a step of the run failed.
+    """
+    system = integrator.system
+    wrt = _checked_wrt(wrt, v0, p0)
+    loss = loss if isinstance(loss, Loss) else Loss(terminal=loss)
+    if not isinstance(n_steps, int | np.integer) or n_steps < 1:
+        raise ValueError(f"n_steps must be a positive int, got {n_steps!r}")
+    spec = integrator.tangent_run_spec
+    prm = system.parameter_vector(params)
+    thetas = tuple(system.params) if "params" in wrt else ()
+    fnp = parameter_addresses(system, thetas) if thetas else np.zeros(1, dtype=np.int64)
+    terms = LossTerms(system, loss, thetas)
+    q, p, v = initial_state(spec, q0, v0, p0, t0, prm, False)
+    whole = n_steps <= RECORD_WHOLE
+    M = int(checkpoint_every or (n_steps if whole else math.isqrt(n_steps - 1) + 1))  # noqa: N806
+    if M < 1:
+        raise ValueError(f"checkpoint_every must be >= 1, got {checkpoint_every}")
+    starts = [Segment(q, p, v, float(t0), float(h), min(M, n_steps), 1, prm)]
+    # forward: the segments' first states only
+    done = 0
+    last = None
+    while True:
+        record = recorded_steps(spec, starts[-1], fnp)
+        if record.result.status != 0:
+            return _failed(record, thetas, system.n, done)
+        done += starts[-1].n_steps
+        last = record
+        if done == n_steps:
+            break
+        t_next = float(t0 + done * h)
+        q_next, p_next = record.q_kept[-1], record.trajectory.p[-1]
+        qs, ps, vs = initial_state(spec, q_next, None, p_next, t_next, prm)
+        starts.append(Segment(qs, ps, vs, t_next, float(h), min(M, n_steps - done), 1, prm))
+    traj_end = last.trajectory
+    value = terms.terminal_value(traj_end, -1)
+    lam = terms.terminal_gradient(traj_end, -1)
+    grad = terms.terminal_parameter_gradient(traj_end, -1)
+    from ..loops import adjoint_sweep
+
+    _, before, after = spec.loop_parts("newton")
+    fn, traits, pattern, _periodic, couplings = before
+    tb = spec.method.tables
+    for index in range(len(starts) - 1, -1, -1):
+        record = last if index == len(starts) - 1 else recorded_steps(spec, starts[index], fnp)
+        steps = record.trajectory
+        running = terms.running_gradients(steps)
+        value += terms.running_value(steps)
+        grad += terms.running_parameter_gradient(steps)
+        sweep_grad = np.zeros(len(thetas))
+        ok = adjoint_sweep(
+            fn, traits, pattern, couplings, fnp, steps.t, record.q_kept, record.stages, prm,
+            tb.b, tb.c, tb.Phi, tb.D, float(h), lam, running, sweep_grad,
+        )  # fmt: skip
+        if not ok:
+            raise RuntimeError("a stage Jacobian of the recorded run is singular")
+        grad += sweep_grad
+    return _result(system, terms, value, lam, grad, thetas, q, v, p0, t0, prm, wrt, starts,
+                   traj_end)  # fmt: skip
+
+
+def _checked_wrt(wrt, v0, p0) -> tuple[str, ...]:
+    if isinstance(wrt, str):
+        wrt = (wrt,)
+    wrt = tuple(wrt)
+    for item in wrt:
+        if item not in WRT:
+            raise ValueError(f"wrt: {item!r} is not one of {WRT}")
+    if "v0" in wrt and v0 is None:
+        raise ValueError("wrt contains 'v0' but the initial state is given by p0")
+    if "p0" in wrt and p0 is None:
+        raise ValueError("wrt contains 'p0' but the initial state is given by v0")
+    return wrt
+
+
+def _failed(record, thetas, n, done) -> Gradient:
+    code = loop_status(record.result.status)
+    step = done + record.result.steps
+    message = f"step {step} of the forward run failed ({code.cause}): no gradient"
+    nan = np.full(n, np.nan)
+    return Gradient(
+        value=np.nan, q0=nan, v0=None, p0=None, params=dict.fromkeys(thetas, np.nan),
+        adjoint=np.full(2 * n, np.nan), trajectory=record.trajectory, status=code,
+        message=message,
+    )  # fmt: skip
+
+
+def _result(system, terms, value, lam, grad, thetas, q, v, p0, t0, prm, wrt, starts, traj_end):
+    n = system.n
+    lam_q, lam_p = lam[:n].copy(), lam[n:].copy()
+    g_q0, g_v0, g_p0 = lam_q, None, None
+    if p0 is None:
+        # p0 = L_v(t0, q0, v0; theta): its derivatives carry lambda_p back
+        dq, dv, dtheta = terms.legendre_jacobians(t0, q, v, prm)
+        g_q0 = lam_q + dq.T @ lam_p
+        g_v0 = dv.T @ lam_p
+        grad = grad + dtheta.T @ lam_p
+    else:
+        g_p0 = lam_p
+    t_rows = np.array([s.t0 for s in starts] + [traj_end.t[-1]])
+    q_rows = np.array([s.q0 for s in starts] + [traj_end.q[-1]])
+    p_rows = np.array([s.p0 for s in starts] + [traj_end.p[-1]])
+    traj = Trajectory(
+        t=t_rows, q=q_rows, p=p_rows, newton_iterations=np.zeros(0, dtype=np.uint8),
+        max_residual=traj_end.max_residual, system=system, params=prm,
+    )  # fmt: skip
+    return Gradient(
+        value=float(value),
+        q0=g_q0 if "q0" in wrt else None,
+        v0=g_v0 if "v0" in wrt else None,
+        p0=g_p0 if "p0" in wrt else None,
+        params=dict(zip(thetas, grad.tolist(), strict=True)),
+        adjoint=lam.copy(),
+        trajectory=traj,
+    )
+
+
+class LossTerms:
+    """The loss's expressions and their gradients, compiled for arrays of rows."""
+
+    def __init__(self, system, loss: Loss, thetas: tuple) -> None:
+        n = system.n
+        p_symbols = tuple(loss.p)
+        if p_symbols and len(p_symbols) != n:
+            raise ValueError(f"Loss.p must list {n} momentum symbols, got {len(p_symbols)}")
+        if not p_symbols:
+            p_symbols = tuple(sp.symbols(f"_p0:{n}"))
+        t = system.t if system.t is not None else sp.Symbol("_t")
+        self.system, self.n = system, n
+        self.arguments = (t, *system.q, *p_symbols, *system.params)
+        known = set(self.arguments)
+        state = (*system.q, *p_symbols)
+        for name, expr in (("terminal", loss.terminal), ("running", loss.running)):
+            if expr is None:
+                continue
+            unknown = sp.sympify(expr).free_symbols - known
+            if unknown:
+                raise ValueError(
+                    f"the {name} loss has symbols that are neither t, q, the momenta of "
+                    f"Loss.p nor parameters: {sorted(map(str, unknown))}"
+                )
+        self.terminal = self._pieces(loss.terminal, state, thetas)
+        self.running = self._pieces(loss.running, state, thetas)
+        self.thetas = thetas
+        lv = sp.Matrix(system.pieces.Lv)
+        self._legendre = sp.lambdify(
+            self.arguments[: 1 + n] + (*system.v, *system.params),
+            [lv.jacobian(list(system.q)), lv.jacobian(list(system.v)),
+             lv.jacobian(list(thetas)) if thetas else sp.zeros(n, 0)],
+            "numpy",
+        )  # fmt: skip
+
+    def _pieces(self, expr, state, thetas):
+        if expr is None:
+            return None
+        expr = sp.sympify(expr)
+        parts = [expr, *(sp.diff(expr, s) for s in state), *(sp.diff(expr, s) for s in thetas)]
+        return sp.lambdify(self.arguments, parts, "numpy")
+
+    def _evaluate(self, function, traj: Trajectory, rows) -> NDArray[np.float64]:
+        t = np.atleast_1d(traj.t[rows])
+        q = np.atleast_2d(traj.q[rows])
+        p = np.atleast_2d(traj.p[rows])
+        values = function(t, *q.T, *p.T, *traj.params)
+        return np.stack([np.broadcast_to(np.asarray(v, dtype=float), t.shape) for v in values], 1)
+
+    def terminal_value(self, traj, row) -> float:
+        if self.terminal is None:
+            return 0.0
+        return float(self._evaluate(self.terminal, traj, row)[0, 0])
+
+    def terminal_gradient(self, traj, row) -> NDArray[np.float64]:
+        if self.terminal is None:
+            return np.zeros(2 * self.n)
+        return self._evaluate(self.terminal, traj, row)[0, 1 : 1 + 2 * self.n].copy()
+
+    def terminal_parameter_gradient(self, traj, row) -> NDArray[np.float64]:
+        if self.terminal is None:
+            return np.zeros(len(self.thetas))
+        return self._evaluate(self.terminal, traj, row)[0, 1 + 2 * self.n :].copy()
+
+    def _running_table(self, steps: Trajectory) -> NDArray[np.float64] | None:
+        if self.running is None:
+            return None
+        return self._evaluate(self.running, steps, slice(0, len(steps) - 1))
+
+    def running_value(self, steps) -> float:
+        table = self._running_table(steps)
+        return 0.0 if table is None else float(table[:, 0].sum())
+
+    def running_gradients(self, steps) -> NDArray[np.float64]:
+        table = self._running_table(steps)
+        if table is None:
+            return np.zeros((len(steps) - 1, 2 * self.n))
+        return np.ascontiguousarray(table[:, 1 : 1 + 2 * self.n])
+
+    def running_parameter_gradient(self, steps) -> NDArray[np.float64]:
+        table = self._running_table(steps)
+        if table is None:
+            return np.zeros(len(self.thetas))
+        return table[:, 1 + 2 * self.n :].sum(axis=0)
+
+    def legendre_jacobians(self, t0, q, v, prm):
+        """:math:`\\partial L_v/\\partial q`, :math:`\\partial L_v/\\partial v`,
+        :math:`\\partial L_v/\\partial\\theta` at the initial state."""
+        dq, dv, dtheta = self._legendre(t0, *q, *v, *prm)
+        n = self.n
+        return (
+            np.asarray(dq, dtype=float).reshape(n, n),
+            np.asarray(dv, dtype=float).reshape(n, n),
+            np.asarray(dtheta, dtype=float).reshape(n, len(self.thetas)),
+        )
+
+
+def warm_up_adjoint(integrator, q0, v0) -> None:
+    """Compile the reverse pass for the loop variant of ``integrator`` (a two-step gradient)."""
+    q = integrator.system.q[0]
+    gradient(integrator, Loss(terminal=q**2), q0, v0, h=0.01, n_steps=2, wrt=("q0",))
