@@ -234,3 +234,23 @@ def test_estimator_bad_input(oscillator):
         estimate_parameters(oscillator, [0.0, 0.1], [1.0, 0.9], [k])
     with pytest.raises(ValueError, match="repeated"):
         estimate_parameters(oscillator, [0.0, 0.1, 0.2], [1.0, 0.9, 0.8], [k, "k"])
+
+
+def test_time_dependent_forcing_amplitude_and_stiffness():
+    """A driven oscillator, started at t0 = 0.3: L = v^2/2 - k x^2/2 + A x cos t."""
+    t = sp.Symbol("t")
+    driven = gvi.LagrangianSystem(v**2 / 2 - k * x**2 / 2 + a * x * sp.cos(t), q=[x], v=[v],
+                                  t=t, params={k: 1.0, a: 0.5})  # fmt: skip
+    method = gvi.Galerkin(2)
+    traj = gvi.Integrator(driven, method).integrate([1.0], v0=[0.0], h=0.05, n_steps=100, t0=0.3,
+                                                    params={k: 2.0, a: 0.7})  # fmt: skip
+    fit = fit_parameters(driven, method, traj.t, traj.q, {k: 1.5, a: 0.3}, v0=[0.0], h=0.05)
+    np.testing.assert_allclose(fit.values, [2.0, 0.7], rtol=1e-9)
+
+
+def test_failed_start_run_is_reported():
+    quartic = gvi.LagrangianSystem(v**2 / 2 - k * x**4 / 4, q=[x], v=[v], params={k: 1.0})
+    t = np.linspace(0.0, 10.0, 11)
+    fit = fit_parameters(quartic, gvi.Galerkin(3), t, np.cos(t), {k: 1e8}, q0=[1.0], v0=[0.0])
+    assert not fit.success and fit.status == FitStatus.RUN_FAILED
+    assert "stability limit" in fit.message and np.isnan(fit.cost)
