@@ -331,13 +331,13 @@ class Integrator:
             complementarity problem in every step, impacts still cut out of
             the steps exactly (``"time-stepping"``).
         tangent : True or array_like of shape (2n, r), optional
-            Carry the tangent map :math:`\Phi_k = \partial(q_k, p_k)/\partial(q_0, p_0)`
+            Carry the tangent map :math:`\\Phi_k = \\partial(q_k, p_k)/\\partial(q_0, p_0)`
             (``True``) or its action on r directions V: ``Trajectory.tangent``,
             shape (rows, 2n, r). Implicit function theorem on each step's stage
             equations with their exact Jacobian at the solution
             (:mod:`galerkin_vi.loops.tangent`): one solve per direction and step.
         sensitivity : sequence of parameter symbols or names, optional
-            Carry :math:`\partial(q_k, p_k)/\partial\theta`: ``Trajectory.sensitivity``,
+            Carry :math:`\\partial(q_k, p_k)/\\partial\\theta`: ``Trajectory.sensitivity``,
             shape (rows, 2n, P).
         renormalize_every : int
             With ``tangent``: orthonormalise the frame every so many steps

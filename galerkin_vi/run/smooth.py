@@ -85,6 +85,10 @@ def integrate_smooth(
         traj = replace(traj, sol=traj.dense())
     if event_list:
         traj = _with_events(spec, traj, event_list, event_functions, prm)
+        if variations is not None and traj.status == RunStatus.TERMINATED:
+            from .tangent import with_event_row
+
+            traj = with_event_row(spec, variations, traj)
     if times is not None and traj.sol is not None:
         traj = at_times(traj, times)
     if traj.status == RunStatus.INTERRUPTED:

@@ -172,12 +172,16 @@ def parameter_addresses(system, parameters: tuple) -> NDArray[np.int64]:
 class TangentRunner:
     """One compiled call of the tangent loop per chunk, the variations carried across."""
 
-    def __init__(self, spec: RunSpec, request: VariationRequest, t_origin: float) -> None:
+    def __init__(
+        self, spec: RunSpec, request: VariationRequest, t_origin: float, sensitivity=None
+    ) -> None:
         system = spec.system
         self.spec, self.request, self.t_origin = spec, request, t_origin
         n = system.n
         self.T = request.directions.copy()
         self.S = np.zeros((2 * n, request.sensitivities))
+        if sensitivity is not None:
+            self.S[:] = sensitivity
         self.chaos = np.zeros(self.T.shape[1] + 2)
         if request.renormalize_every:
             # Benettin's frame starts orthonormal; its own lengths are not growth
@@ -226,6 +230,45 @@ class TangentRunner:
             megno_mean=megno_out[:saved, 1] if chaos_rows else None,
         )
         return replace(traj, variations=variations), result
+
+
+def with_event_row(spec: RunSpec, request: VariationRequest, traj: Trajectory) -> Trajectory:
+    """``traj`` cut at a terminal event, with the variations at its last row (the event).
+
+    The event's row is the state at the event time :math:`t_e`, between steps k
+    and k + 1; its variations are those of the step of length :math:`t_e - t_k`
+    from row k: the derivative of the state at the time :math:`t_e` held fixed
+    (the event time's own dependence on the start is not included).
+    """
+    var = traj.variations
+    rows = len(traj.t)
+    if var is None or var.tangent is None and var.sensitivity is None:
+        return traj
+    k = rows - 2
+    kept = var.rows(slice(0, rows))
+    tau = float(traj.t[-1] - traj.t[k])
+    if tau == 0.0 or rows < 2:
+        return replace(traj, variations=var.rows(np.r_[np.arange(rows - 1), k]))
+    directions = var.tangent[k] if var.tangent is not None else request.directions
+    from .start import initial_state
+
+    prm = traj.params
+    q_k, p_k = traj.q[k], traj.p[k]
+    q0, p0, v0 = initial_state(spec, q_k, None, p_k, float(traj.t[k]), prm)
+    runner = TangentRunner(
+        spec, replace(request, directions=np.ascontiguousarray(directions), renormalize_every=0),
+        float(traj.t[k]), None if var.sensitivity is None else var.sensitivity[k],
+    )  # fmt: skip
+    step, result = runner(Segment(q0, p0, v0, float(traj.t[k]), tau, 1, 1, prm))
+    last = {}
+    for name in Variations.FIELDS:
+        whole = getattr(kept, name)
+        if whole is None:
+            continue
+        value = getattr(step.variations, name)
+        value = whole[k] if value is None or result.status != 0 else value[-1]
+        last[name] = np.concatenate([whole[: rows - 1], value[None]])
+    return replace(traj, variations=replace(kept, **last))
 
 
 @dataclass(frozen=True)
