@@ -29,6 +29,7 @@ RUNS = {
     "figure_eight.py": ([], "the Newton iteration converged"),
     "catenary_brachistochrone.py": ([], "nodal slopes"),
     "cart_pole_swing_up.py": ([], "largest |u|"),
+    "fit_damped_pendulum.py": (["--n-obs", "40", "--output", str(SMOKE_OUTPUT)], "std. error"),
 }
 
 
