@@ -473,6 +473,14 @@ def lyapunov_map(
     -------
     ChaosMap
         ``values`` shape (m, r): every member's exponents, descending.
+
+    Notes
+    -----
+    Members save only their first and last rows (``save_every=n_steps`` unless
+    given). Each member's values are bitwise those of the single call with the
+    same options; a single call with another ``save_every`` cuts a long run into
+    compiled chunks elsewhere (:mod:`galerkin_vi.run.chunks`), which changes the
+    result by rounding, amplified on a chaotic orbit.
     """
     options = {"save_every": n_steps, **options}  # only the final values travel back
     return _chaos_map("lyapunov", integrator, q0s, v0s, p0s, h, n_steps, params, executor,
@@ -494,8 +502,9 @@ def megno_map(
 ) -> ChaosMap:
     """:func:`megno` of every member; arguments as :func:`lyapunov_map`.
 
-    ``options`` go to :func:`megno` (``seed``, ``direction``, ``t0``,
-    ``on_failure``); every member uses the same deviation direction.
+    ``options`` go to :func:`megno` (``seed``, ``direction``, ``save_every``,
+    ``t0``, ``on_failure``); every member uses the same deviation direction.
+    Members save as :func:`lyapunov_map`'s do.
 
     Returns
     -------
