@@ -29,6 +29,7 @@ RUNS = {
     "figure_eight.py": ([], "the Newton iteration converged"),
     "catenary_brachistochrone.py": ([], "nodal slopes"),
     "cart_pole_swing_up.py": ([], "largest |u|"),
+    "henon_heiles_megno.py": (["--grid", "10", "--t-final", "50"], "Lyapunov exponents"),
 }
 
 
