@@ -30,6 +30,7 @@ RUNS = {
     "catenary_brachistochrone.py": ([], "nodal slopes"),
     "cart_pole_swing_up.py": ([], "largest |u|"),
     "fit_damped_pendulum.py": (["--n-obs", "40", "--output", str(SMOKE_OUTPUT)], "std. error"),
+    "henon_heiles_megno.py": (["--grid", "10", "--t-final", "50"], "Lyapunov exponents"),
 }
 
 

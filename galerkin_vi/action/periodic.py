@@ -44,6 +44,7 @@ from __future__ import annotations
 import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import sympy as sp
@@ -58,7 +59,7 @@ from ..run.trajectory import Trajectory
 from .bvp import ActionStatus
 from .elements import ElementPoints, element_actions, element_gradients, element_jacobians
 
-__all__ = ["PeriodicOrbit", "follow_family", "solve_periodic"]
+__all__ = ["OrbitFamily", "PeriodicOrbit", "follow_family", "solve_periodic"]
 
 
 @dataclass(frozen=True)
@@ -84,6 +85,15 @@ class PeriodicOrbit(SolverResult):
         The borders' :math:`\mu` (zero at a solution; large values flag a
         symmetry the system does not have).
     method : Galerkin
+    monodromy : ndarray, shape (2n, 2n)
+        The tangent map over one period, :math:`\partial(q_N, p_N)/\partial(q_0, p_0)`
+        (:func:`galerkin_vi.tangent.floquet.monodromy`; computed on first access).
+    floquet_multipliers : ndarray of complex, shape (2n,)
+        Its eigenvalues, by modulus descending.
+    is_linearly_stable : bool
+        All multipliers on the unit circle to
+        :data:`~galerkin_vi.tangent.floquet.STABILITY_TOLERANCE`
+        (:meth:`linearly_stable` takes another tolerance).
     """
 
     period: float
@@ -96,6 +106,33 @@ class PeriodicOrbit(SolverResult):
     residual: float
     multipliers: NDArray[np.float64]
     method: Galerkin
+
+    @cached_property
+    def monodromy(self) -> NDArray[np.float64]:
+        """The monodromy matrix (see the class docstring)."""
+        from ..tangent.floquet import monodromy
+
+        return monodromy(self)
+
+    @cached_property
+    def floquet_multipliers(self) -> NDArray[np.complex128]:
+        """The Floquet multipliers, by modulus descending."""
+        from ..tangent.floquet import floquet_multipliers
+
+        return floquet_multipliers(self.monodromy)
+
+    @property
+    def is_linearly_stable(self) -> bool:
+        """Whether every Floquet multiplier lies on the unit circle (default tolerance)."""
+        return self.linearly_stable()
+
+    def linearly_stable(self, tol: float | None = None) -> bool:
+        """Whether every Floquet multiplier has ``| |mu| - 1 | <= tol``
+        (default :data:`~galerkin_vi.tangent.floquet.STABILITY_TOLERANCE`)."""
+        from ..tangent.floquet import STABILITY_TOLERANCE, is_linearly_stable
+
+        return is_linearly_stable(self.floquet_multipliers, STABILITY_TOLERANCE if tol is None
+                                  else tol)  # fmt: skip
 
 
 class _Cycle:
@@ -427,25 +464,51 @@ def _orbit(cycle: _Cycle, z, T, status, iterations, mu, energy) -> PeriodicOrbit
     )  # fmt: skip
 
 
+class OrbitFamily(list):
+    """The orbits of :func:`follow_family` (a list), and where their stability changes.
+
+    Attributes
+    ----------
+    stability_changes : list of StabilityChange
+        Between which consecutive converged orbits the Floquet multipliers leave
+        or enter the unit circle (:func:`galerkin_vi.tangent.floquet.stability_changes`,
+        default tolerance); computed on first access.
+    stable : ndarray of bool
+        Each orbit's :attr:`PeriodicOrbit.is_linearly_stable` (False for a failed one).
+    """
+
+    @cached_property
+    def stability_changes(self) -> list:
+        from ..tangent.floquet import stability_changes
+
+        return stability_changes(self)
+
+    @property
+    def stable(self) -> NDArray[np.bool_]:
+        return np.array([orbit.success and orbit.is_linearly_stable for orbit in self], dtype=bool)
+
+
 def follow_family(
     system: LagrangianSystem,
     method: Galerkin,
     start: PeriodicOrbit,
     energies: ArrayLike,
     **options,
-) -> list[PeriodicOrbit]:
+) -> OrbitFamily:
     """Follow a family of periodic orbits along the energy (natural-parameter continuation).
 
     Each orbit of ``energies`` is solved from the previous one (its control
     points and period), starting from ``start``; the steps in energy must be
     small enough for Newton to converge from there. Stops at the first solve
-    that fails and returns the orbits found so far, the failed one last.
+    that fails and returns the orbits found so far, the failed one last, as an
+    :class:`OrbitFamily`: a list that also says where the orbits' linear stability
+    changes (``stability_changes``, from their Floquet multipliers).
 
     ``options``: ``symmetries``, ``params``, ``tol``, ``maxiter`` as in
     :func:`solve_periodic`.
     """
     N = start.control_points.shape[0]
-    orbits: list[PeriodicOrbit] = []
+    orbits = OrbitFamily()
     previous = start
     for value in np.asarray(energies, dtype=float):
         orbit = solve_periodic(system, method, previous, None, previous.period, N,
