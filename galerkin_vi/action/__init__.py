@@ -10,12 +10,13 @@ optimal control by the discrete Lagrange–d'Alembert principle (:mod:`.control`
 
 from .bvp import ActionStatus, BoundaryValueResult, solve_bvp
 from .control import OptimalControl, solve_optimal_control
-from .periodic import PeriodicOrbit, follow_family, solve_periodic
+from .periodic import OrbitFamily, PeriodicOrbit, follow_family, solve_periodic
 
 __all__ = [
     "ActionStatus",
     "BoundaryValueResult",
     "OptimalControl",
+    "OrbitFamily",
     "PeriodicOrbit",
     "follow_family",
     "solve_bvp",
