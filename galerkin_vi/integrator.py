@@ -373,13 +373,15 @@ class Integrator:
             on_failure=on_failure, dense_output=dense_output, t_span=t_span, events=events,
             progress=progress, t_eval=t_eval,
         )  # fmt: skip
+        request = variation_request(self.system, tangent, sensitivity, renormalize_every)
         if self.system.contacts:
             from .contact.runs import integrate_with_contacts
 
-            return integrate_with_contacts(self, q0, v0, p0, contact_mode=contact_mode, **run)
+            return integrate_with_contacts(
+                self, q0, v0, p0, contact_mode=contact_mode, variations=request, **run
+            )
         if contact_mode != "auto":
             raise ValueError(f"contact_mode={contact_mode!r} needs a system with contacts")
-        request = variation_request(self.system, tangent, sensitivity, renormalize_every)
         if request is not None:
             return integrate_smooth(self.tangent_run_spec, q0, v0, p0, variations=request, **run)
         return integrate_smooth(self.run_spec, q0, v0, p0, **run)

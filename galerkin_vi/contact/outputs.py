@@ -158,6 +158,7 @@ def saved_every(traj, grid: NDArray[np.bool_], t0: float, h: float, k: int):
         q=traj.q[keep],
         p=traj.p[keep],
         q_reduced=None if traj.q_reduced is None else traj.q_reduced[keep],
+        variations=None if traj.variations is None else traj.variations.rows(keep),
     )
 
 
@@ -240,10 +241,16 @@ def _without_after(traj, stop: float):
 
 
 def finish(traj, options: RunOptions, grid: NDArray[np.bool_], t0: float, h: float,
-           one_step: Callable):  # fmt: skip
-    """``traj`` with the options applied: events, dense output, ``t_eval``, ``save_every``."""
+           one_step: Callable, event_row: Callable | None = None):  # fmt: skip
+    """``traj`` with the options applied: events, dense output, ``t_eval``, ``save_every``.
+
+    ``event_row(traj)`` gives the variations of the row of a terminal event (runs with
+    the tangent map).
+    """
     if options.events:
         traj = with_events(traj, options.events, options.functions, one_step)
+        if event_row is not None and traj.status == RunStatus.TERMINATED:
+            traj = event_row(traj)
     if options.dense_output and len(traj) >= 2:
         sol = PiecewiseDenseOutput.from_rows(
             traj.t, traj.q, traj.velocities(), stencil_nodes(traj.order or 2), traj.system,

@@ -29,6 +29,7 @@ has released for two steps; ``"event"`` stops there with status
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -74,14 +75,15 @@ RELEASED_IMPULSE = 1e-12
 
 def integrate_with_contacts(
     integrator, q0, v0, p0, *, h, n_steps, t0, params, save_every, project, on_failure,
-    dense_output, t_span, events, progress, t_eval, contact_mode,
+    dense_output, t_span, events, progress, t_eval, contact_mode, variations=None,
 ):  # fmt: skip
     """:meth:`Integrator.integrate` of a system with contacts (the module's method).
 
     Every option of a smooth run applies (:mod:`.outputs`): ``save_every``,
     ``dense_output`` (piecewise between impacts), ``events``, ``t_eval``,
     ``project`` (constrained systems), ``progress``, Ctrl-C, ``on_failure``,
-    ``t_span``. A negative ``h`` runs backwards in time with the inverse impact
+    ``t_span``; ``variations`` (the tangent map: :mod:`.tangent`, impacts by their
+    saltation matrices). A negative ``h`` runs backwards in time with the inverse impact
     law (:func:`.impact.inverse_impulse`): frictionless contacts with e > 0
     only, isolated impacts only (``contact_mode="auto"`` stops where a contact
     persists, as ``"event"`` does).
@@ -96,6 +98,15 @@ def integrate_with_contacts(
     options = run_options(
         system, h, n_steps, t0, save_every, dense_output, events, t_eval, progress
     )
+    if variations is not None:
+        from .tangent import check_contact_variations
+
+        check_contact_variations(system, variations, contact_mode, h)
+        if t_eval is not None:
+            raise ValueError(
+                "t_eval cannot be combined with tangent: the tangent map is defined at the "
+                "steps; use save_every"
+            )
     prm = system.parameter_vector(params)
     # lambdified once per system (milliseconds each): kept with it, like event functions
     functions = system.derived.get(("contact", "functions"), lambda: ContactFunctions(system))
@@ -117,8 +128,27 @@ def integrate_with_contacts(
     def cut_step(q, p, tau, t):
         return one_step(integrator.run_spec, q, p, tau, t, prm)
 
-    traj = finish(traj, options, run.grid()[: len(traj)], t0, h, cut_step)
+    event_row = None
+    if variations is not None:
+        traj, event_row = _with_variations(integrator, run, traj, variations, functions, h)
+    traj = finish(traj, options, run.grid()[: len(traj)], t0, h, cut_step, event_row)
     return run.outcome(traj, stop, on_failure)
+
+
+def _with_variations(integrator, run: _Run, traj, request, functions, h: float):
+    """``traj`` with the tangent at every row, and the tangent of a terminal event's row."""
+    from ..run.tangent import with_event_row
+    from .tangent import contact_variations
+
+    if run.forces:
+        raise ValueError(
+            f"tangent with contacts: the run took complementarity steps from t = "
+            f"{run.forces[0][0]:.6g} (a persisting contact), whose tangent map is not built; "
+            "contact_mode='event' stops there instead"
+        )
+    traj = replace(traj, variations=contact_variations(integrator, traj, request, functions, h))
+    spec = integrator.tangent_run_spec
+    return traj, lambda cut: with_event_row(spec, request, cut)
 
 
 def _drive(run: _Run, t0: float, n_steps: int, contact_mode: str) -> _Stop | None:
