@@ -22,11 +22,13 @@ tests it against the tangent map to round-off.
 
 **Checkpointing.** The reverse pass needs each step's control points. A run of
 N steps is cut into segments of :math:`M \approx \sqrt N` steps; the forward
-pass keeps only the segments' first states, and the reverse pass runs each
-segment again from its first state (the same compiled call, so the same
-steps bit for bit) recording its control points, then sweeps it backwards.
+pass (the system's fastest loop) keeps only the segments' first states, and
+the reverse pass runs each segment again from its first state through the
+tangent loop, recording its control points, then sweeps it backwards.
 Memory :math:`O(\sqrt N)` states and stages, cost one extra forward pass
-(the two-level scheme that Griewank's revolve generalises).
+(the two-level scheme that Griewank's revolve generalises). The segments'
+recorded steps agree with the forward pass's to round-off, not bit for bit
+(another loop solves the same stage equations).
 
 With the initial velocity given, :math:`p_0 = L_v(t_0, q_0, v_0; \theta)`, and the
 gradients with respect to :math:`q_0`, :math:`v_0` and :math:`\theta` take its
@@ -38,7 +40,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import sympy as sp
@@ -76,6 +78,14 @@ class Loss:
     terminal: sp.Expr | None = None
     running: sp.Expr | None = None
     p: Sequence[sp.Symbol] = field(default=())
+
+    def __post_init__(self) -> None:
+        # hashable: the compiled loss is kept with the system under these expressions
+        object.__setattr__(self, "p", tuple(self.p))
+        for name in ("terminal", "running"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, sp.sympify(value))
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,7 +151,7 @@ def gradient(
         What to differentiate with respect to; ``"v0"`` needs ``v0`` given,
         ``"p0"`` needs ``p0``; ``"params"`` means every parameter of the system.
     checkpoint_every : int, optional
-        Steps per recorded segment; default :math:`\lceil\sqrt N\rceil` for runs
+        Steps per recorded segment; default :math:`4\lceil\sqrt N\rceil` for runs
         over ``RECORD_WHOLE`` steps, else the whole run.
 
     Returns
@@ -164,40 +174,41 @@ def gradient(
     prm = system.parameter_vector(params)
     thetas = tuple(system.params) if "params" in wrt else ()
     fnp = parameter_addresses(system, thetas) if thetas else np.zeros(1, dtype=np.int64)
-    terms = LossTerms(system, loss, thetas)
+    terms = system.derived.get(
+        ("adjoint", "loss", loss.terminal, loss.running, loss.p, thetas),
+        lambda: LossTerms(system, loss, thetas),
+    )
     q, p, v = initial_state(spec, q0, v0, p0, t0, prm, False)
     whole = n_steps <= RECORD_WHOLE
-    M = int(checkpoint_every or (n_steps if whole else math.isqrt(n_steps - 1) + 1))  # noqa: N806
+    M = int(checkpoint_every or (n_steps if whole else 4 * (math.isqrt(n_steps - 1) + 1)))  # noqa: N806
     if M < 1:
         raise ValueError(f"checkpoint_every must be >= 1, got {checkpoint_every}")
-    starts = [Segment(q, p, v, float(t0), float(h), min(M, n_steps), 1, prm)]
-    # forward: the segments' first states only
-    done = 0
-    last = None
-    while True:
-        record = recorded_steps(spec, starts[-1], fnp)
-        if record.result.status != 0:
-            return _failed(record, thetas, system.n, done)
-        done += starts[-1].n_steps
-        last = record
-        if done == n_steps:
-            break
-        t_next = float(t0 + done * h)
-        q_next, p_next = record.q_kept[-1], record.trajectory.p[-1]
-        qs, ps, vs = initial_state(spec, q_next, None, p_next, t_next, prm)
-        starts.append(Segment(qs, ps, vs, t_next, float(h), min(M, n_steps - done), 1, prm))
-    traj_end = last.trajectory
-    value = terms.terminal_value(traj_end, -1)
-    lam = terms.terminal_gradient(traj_end, -1)
-    grad = terms.terminal_parameter_gradient(traj_end, -1)
+    starts = _checkpoints(integrator, q, p, v, float(t0), float(h), n_steps, M, prm)
+    if isinstance(starts, Trajectory):
+        return _failed(starts, thetas, system.n)
     from ..loops import adjoint_sweep
 
     _, before, after = spec.loop_parts("newton")
     fn, traits, pattern, _periodic, couplings = before
     tb = spec.method.tables
+    traj_end = None
     for index in range(len(starts) - 1, -1, -1):
-        record = last if index == len(starts) - 1 else recorded_steps(spec, starts[index], fnp)
+        start = starts[index]
+        if start.v0 is None:
+            q_s, p_s, v_s = initial_state(spec, start.q0, None, start.p0, start.t0, prm)
+            start = start._replace(q0=q_s, p0=p_s, v0=v_s)
+        record = recorded_steps(spec, start, fnp)
         steps = record.trajectory
+        if record.result.status != 0:
+            cause = loop_status(record.result.status)
+            step = int(round((start.t0 - t0) / h)) + record.result.steps
+            failed = replace(steps, status=cause, message=f"step {step}: {cause.cause}")
+            return _failed(failed, thetas, system.n)
+        if traj_end is None:  # the run's last segment: the terminal term
+            traj_end = steps
+            value = terms.terminal_value(steps, -1)
+            lam = terms.terminal_gradient(steps, -1)
+            grad = terms.terminal_parameter_gradient(steps, -1)
         running = terms.running_gradients(steps)
         value += terms.running_value(steps)
         grad += terms.running_parameter_gradient(steps)
@@ -227,14 +238,31 @@ def _checked_wrt(wrt, v0, p0) -> tuple[str, ...]:
     return wrt
 
 
-def _failed(record, thetas, n, done) -> Gradient:
-    code = loop_status(record.result.status)
-    step = done + record.result.steps
-    message = f"step {step} of the forward run failed ({code.cause}): no gradient"
+def _checkpoints(integrator, q, p, v, t0, h, n_steps, M, prm):  # noqa: N803
+    """The segments' starts: the run's start alone, or every M-th state of a plain run
+    (their velocities found when a segment is recorded), or that run if it failed."""
+    if n_steps <= M:
+        return [Segment(q, p, v, t0, h, n_steps, 1, prm)]
+    system = integrator.system
+    plain = integrator.integrate(
+        q, p0=p, h=h, n_steps=n_steps, t0=t0, save_every=M, on_failure="warn",
+        params=dict(zip(system.params, prm, strict=True)),
+    )  # fmt: skip
+    if not plain.success:
+        return plain
+    return [
+        Segment(plain.q[i], plain.p[i], None, t0 + i * M * h, h, min(M, n_steps - i * M), 1, prm)
+        for i in range(len(plain.t) - 1)
+    ]
+
+
+def _failed(traj, thetas, n) -> Gradient:
+    code = traj.status
+    message = f"the forward run failed: {traj.message}; no gradient"
     nan = np.full(n, np.nan)
     return Gradient(
         value=np.nan, q0=nan, v0=None, p0=None, params=dict.fromkeys(thetas, np.nan),
-        adjoint=np.full(2 * n, np.nan), trajectory=record.trajectory, status=code,
+        adjoint=np.full(2 * n, np.nan), trajectory=traj, status=code,
         message=message,
     )  # fmt: skip
 
