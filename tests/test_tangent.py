@@ -365,3 +365,19 @@ def test_a_used_system_with_tangent_data_pickles():
     )
     traj = integrator.integrate([1.0], v0=[0.0], h=0.1, n_steps=3, sensitivity=[k])
     np.testing.assert_array_equal(again.sensitivity, traj.sensitivity)
+
+
+def test_sensitivity_to_a_constant_force_is_its_closed_form():
+    # run after another system's sensitivities with the same shape: their generated
+    # parameter derivatives (-q here, 1 below) must not share a cache entry
+    gvi.Integrator(oscillator(), gvi.Galerkin(2)).integrate(
+        [1.0], v0=[0.0], h=0.1, n_steps=2, sensitivity=[k]
+    )
+    a = sp.Symbol("a")
+    fall = gvi.LagrangianSystem(v**2 / 2 + a * q, [q], [v], params={a: -1.0})
+    traj = gvi.Integrator(fall, gvi.Galerkin(2)).integrate(
+        [1.0], v0=[0.5], h=0.1, n_steps=20, sensitivity=[a]
+    )
+    # q = q0 + v0 t + a t^2 / 2, p = v0 + a t: the method is exact for them
+    np.testing.assert_allclose(traj.sensitivity[:, 0, 0], traj.t**2 / 2, atol=1e-13)
+    np.testing.assert_allclose(traj.sensitivity[:, 1, 0], traj.t, atol=1e-13)

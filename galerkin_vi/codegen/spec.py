@@ -305,6 +305,10 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
         *(f"{k}={sp.srepr(e)}" for k, e in spec.constraint_parts),
         sp.srepr(spec.lagrangian),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.hessian_entries),
+        # every generated function's entries: a spec of derivatives in the parameters
+        # (:func:`parameter_derivative_spec`) has gradient entries only
+        *(f"{k}={sp.srepr(e)}" for k, e in spec.gradient_entries),
+        *(f"{k}={sp.srepr(e)}" for k, e in spec.mass_entries),
     ):
         h.update(part.encode())
         h.update(b"\0")
