@@ -381,3 +381,17 @@ def test_sensitivity_to_a_constant_force_is_its_closed_form():
     # q = q0 + v0 t + a t^2 / 2, p = v0 + a t: the method is exact for them
     np.testing.assert_allclose(traj.sensitivity[:, 0, 0], traj.t**2 / 2, atol=1e-13)
     np.testing.assert_allclose(traj.sensitivity[:, 1, 0], traj.t, atol=1e-13)
+
+
+def test_ensembles_carry_the_tangent_and_adaptive_runs_say_why_not():
+    system = oscillator()
+    integrator = gvi.Integrator(system, gvi.Galerkin(2))
+    run = dict(h=0.1, n_steps=10, tangent=True, sensitivity=[k])
+    many = integrator.integrate_many([[1.0], [0.5]], [[0.0], [0.1]], **run)
+    for member, (q0, v0) in zip(many, [(1.0, 0.0), (0.5, 0.1)], strict=True):
+        alone = integrator.integrate([q0], v0=[v0], **run)
+        np.testing.assert_array_equal(member.tangent, alone.tangent)
+        np.testing.assert_array_equal(member.sensitivity, alone.sensitivity)
+    adaptive = gvi.AdaptiveIntegrator(system, gvi.Galerkin(2), g=1 + q**2)
+    with pytest.raises(ValueError, match="adaptive runs"):
+        adaptive.integrate([1.0], v0=[0.0], h=0.1, n_steps=10, tangent=True)

@@ -169,6 +169,8 @@ class AdaptiveIntegrator:
         progress: bool | None = None,
         t_eval: ArrayLike | None = None,
         project: bool = False,
+        tangent: object = None,
+        sensitivity: object = None,
     ) -> AdaptiveTrajectory:
         r"""Integrate with fictitious step ``h`` for ``n_steps`` steps or up to ``t_final``.
 
@@ -234,6 +236,9 @@ class AdaptiveIntegrator:
             Accepted for the signature of :meth:`Integrator.integrate`; the
             Poincaré transformation applies to systems without constraints,
             so there is nothing to project onto and ``True`` is an error.
+        tangent, sensitivity
+            Accepted for the signature of :meth:`Integrator.integrate`; not
+            carried by adaptive runs (a ValueError says why).
 
         Returns
         -------
@@ -250,6 +255,12 @@ class AdaptiveIntegrator:
             fictitious step.
         """
         check_failure_mode(on_failure)
+        if tangent is not None or sensitivity is not None:
+            raise ValueError(
+                "tangent and sensitivity are not carried by adaptive runs: their steps are "
+                "equal in fictitious time, and varying the start moves the physical times of "
+                "the saved rows; use Integrator.integrate with a fixed step"
+            )
         if project:
             raise ValueError(
                 "project=True needs a system with constraints; the Poincaré time "
