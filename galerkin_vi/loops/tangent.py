@@ -42,10 +42,11 @@ applied to a cotangent :math:`\lambda_{k+1}`, is one solve with :math:`K^T`
 discrete adjoint (:func:`adjoint_sweep`).
 
 The tangent loop solves the stage equations by simplified Newton with the
-factors of the previous step's Jacobian, then assembles and factorises the
-Jacobian once at the solution (exact there, as the tangent map needs) and
-propagates the directions; those factors are the next step's iteration matrix.
-With ``renormalize_every`` :math:`m > 0` it
+factors of the previous step's Jacobian (or, after a slowly contracting step,
+of one at the first iterate, as :func:`.general.general_loop` does), then
+assembles and factorises the Jacobian once at the solution (exact there, as
+the tangent map needs) and propagates the directions; those factors are the
+next step's iteration matrix. With ``renormalize_every`` :math:`m > 0` it
 orthonormalises the frame every :math:`m` steps by modified Gram–Schmidt
 (Benettin et al. 1980), accumulating :math:`\log r_{jj}`, and keeps the MEGNO
 sums of the frame's first column (Cincotta & Simó 2000):
@@ -77,7 +78,7 @@ from .common import (
     save_row,
     wrap_angles,
 )
-from .general import SIMPLIFIED_CONTRACTION
+from .general import SIMPLIFIED_CONTRACTION, STALE_RETRY
 from .linalg import (
     CONTINUE,
     CONVERGED,
@@ -467,6 +468,7 @@ def tangent_loop(
     banded = pattern is not None
     inv_h = 1.0 / h
     factored = False  # K holds the factors of the Jacobian at the last step's solution
+    fresh_for = 0  # steps that start with a Jacobian at their first iterate
     dpk = np.zeros(n)
     p_lost = np.zeros(n)
     C = np.zeros((s1, n))
@@ -502,7 +504,9 @@ def tangent_loop(
         increment = np.inf
         residual = np.inf
         previous = np.inf
-        fresh = not factored
+        fresh = not factored or fresh_for > 0
+        if fresh_for > 0:
+            fresh_for -= 1
         refreshed = False
         while its < maxiter:
             its += 1
@@ -559,6 +563,10 @@ def tangent_loop(
                 previous = np.inf
                 continue
             fresh = its >= 2 and scaled > SIMPLIFIED_CONTRACTION * previous and scaled > tol
+            if fresh and not refreshed:
+                # the Jacobian drifts too fast for the step: the next steps start with
+                # one at their first iterate (as the general loop does)
+                fresh_for = STALE_RETRY
             previous = scaled
         if status == STATUS_OK:
             linearize(
