@@ -106,6 +106,11 @@ class Gradient(SolverResult):
         :math:`\lambda_0`, the cotangent of :math:`(q_0, p_0)`.
     trajectory : Trajectory
         The forward run's segment starts and its last state.
+    mode : {"adjoint", "forward"}
+        How the sums were formed: the reverse pass, or (constrained systems,
+        whose momentum projection has no reverse pass yet) the tangent map
+        carried forward with 2n + P directions: the same derivatives, at n
+        times the cost.
     status : RunStatus
     message : str
     """
@@ -117,6 +122,7 @@ class Gradient(SolverResult):
     params: dict
     adjoint: NDArray[np.float64]
     trajectory: Trajectory
+    mode: str = "adjoint"
     status: RunStatus = RunStatus.COMPLETED
     message: str = "the gradient of the whole run"
 
@@ -164,16 +170,9 @@ def gradient(
     loss = loss if isinstance(loss, Loss) else Loss(terminal=loss)
     if not isinstance(n_steps, int | np.integer) or n_steps < 1:
         raise ValueError(f"n_steps must be a positive int, got {n_steps!r}")
-    if system.m:
-        raise ValueError(
-            "gradient: the reverse pass of constrained steps (the momentum projection's "
-            "transpose) is not built; forward mode works: integrate(..., tangent=..., "
-            "sensitivity=...) gives the same derivatives"
-        )
     spec = integrator.tangent_run_spec
     prm = system.parameter_vector(params)
     thetas = tuple(system.params) if "params" in wrt else ()
-    fnp = parameter_addresses(system, thetas) if thetas else np.zeros(1, dtype=np.int64)
     terms = system.derived.get(
         ("adjoint", "loss", loss.terminal, loss.running, loss.p, thetas),
         lambda: LossTerms(system, loss, thetas),
@@ -183,6 +182,20 @@ def gradient(
     M = int(checkpoint_every or (n_steps if whole else 4 * (math.isqrt(n_steps - 1) + 1)))  # noqa: N806
     if M < 1:
         raise ValueError(f"checkpoint_every must be >= 1, got {checkpoint_every}")
+    if system.m:
+        outcome = _forward_mode(
+            integrator, terms, q, p, float(t0), float(h), n_steps, M, thetas, prm
+        )
+        if isinstance(outcome, Trajectory):
+            return _failed(outcome, thetas, system.n)
+        value, lam, grad, traj_end = outcome
+        start = Segment(q, p, v, float(t0), float(h), n_steps, 1, prm)
+        return replace(
+            _result(system, terms, value, lam, grad, thetas, q, v, p0, t0, prm, wrt, [start],
+                    traj_end),
+            mode="forward",
+        )  # fmt: skip
+    fnp = parameter_addresses(system, thetas) if thetas else np.zeros(1, dtype=np.int64)
     starts = _checkpoints(integrator, q, p, v, float(t0), float(h), n_steps, M, prm)
     if isinstance(starts, Trajectory):
         return _failed(starts, thetas, system.n)
@@ -236,6 +249,41 @@ def _checked_wrt(wrt, v0, p0) -> tuple[str, ...]:
     if "p0" in wrt and p0 is None:
         raise ValueError("wrt contains 'p0' but the initial state is given by v0")
     return wrt
+
+
+def _forward_mode(integrator, terms, q, p, t0, h, n_steps, M, thetas, prm):  # noqa: N803
+    r"""The same sums in forward mode: :math:`\lambda_0 = \sum_k \Phi_k^T\nabla\ell_k +
+    \Phi_N^T\nabla\varphi`, with the frame :math:`[\Phi, S]` (2n + P directions) carried
+    through segments of M steps; (value, lambda_0, gradient, last segment) or the failed run.
+    """
+    n, P = integrator.system.n, len(thetas)  # noqa: N806
+    frame = np.hstack([np.eye(2 * n), np.zeros((2 * n, P))])
+    value, lam, grad = 0.0, np.zeros(2 * n), np.zeros(P)
+    done, t_s = 0, t0
+    params = dict(zip(integrator.system.params, prm, strict=True))
+    while done < n_steps:
+        m = min(M, n_steps - done)
+        steps = integrator.integrate(
+            q, p0=p, h=h, n_steps=m, t0=t_s, params=params, tangent=frame,
+            sensitivity=list(thetas) or None, on_failure="warn",
+        )  # fmt: skip
+        if not steps.success:
+            return steps
+        phi = steps.tangent[:, :, : 2 * n]
+        sens = steps.tangent[:, :, 2 * n :]
+        if P:
+            sens = sens + steps.sensitivity
+        running = terms.running_gradients(steps)
+        value += terms.running_value(steps)
+        lam += np.einsum("kij,ki->j", phi[:-1], running)
+        grad += np.einsum("kij,ki->j", sens[:-1], running) + terms.running_parameter_gradient(steps)
+        frame = np.hstack([phi[-1], sens[-1]])
+        q, p, t_s, done = steps.q[-1], steps.p[-1], t0 + (done + m) * h, done + m
+    terminal = terms.terminal_gradient(steps, -1)
+    value += terms.terminal_value(steps, -1)
+    lam += phi[-1].T @ terminal
+    grad += sens[-1].T @ terminal + terms.terminal_parameter_gradient(steps, -1)
+    return value, lam, grad, steps
 
 
 def _checkpoints(integrator, q, p, v, t0, h, n_steps, M, prm):  # noqa: N803
