@@ -31,6 +31,10 @@ RUNS = {
     "cart_pole_swing_up.py": ([], "largest |u|"),
     "fit_damped_pendulum.py": (["--n-obs", "40", "--output", str(SMOKE_OUTPUT)], "std. error"),
     "henon_heiles_megno.py": (["--grid", "10", "--t-final", "50"], "Lyapunov exponents"),
+    "gradient_shooting.py": (["--output", str(SMOKE_OUTPUT)], "gradient evaluations"),
+    "periodic_family_stability.py": (
+        ["--e-max", "0.3", "--output", str(SMOKE_OUTPUT)], "Mathieu boundary E = 0.1856"
+    ),
 }
 
 
