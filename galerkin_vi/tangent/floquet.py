@@ -41,7 +41,7 @@ __all__ = [
     "stability_changes",
 ]
 
-#: largest distance | |mu| - 1 | of a multiplier counted as on the unit circle
+#: largest distance ``||mu| - 1|`` of a multiplier counted as on the unit circle
 STABILITY_TOLERANCE = 1e-4
 
 
