@@ -333,6 +333,10 @@ class Integrator:
             shape (rows, 2n, r). Implicit function theorem on each step's stage
             equations with their exact Jacobian at the solution
             (:mod:`galerkin_vi.loops.tangent`): one solve per direction and step.
+            The row of a terminal event holds the derivative at the event time
+            held fixed. With ``v0`` the start's momentum is :math:`L_v(q_0, v_0)`:
+            the tangent is still with respect to :math:`(q_0, p_0)`, the
+            sensitivity at fixed :math:`v_0`.
         sensitivity : sequence of parameter symbols or names, optional
             Carry :math:`\\partial(q_k, p_k)/\\partial\\theta`: ``Trajectory.sensitivity``,
             shape (rows, 2n, P).

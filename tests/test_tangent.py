@@ -136,7 +136,7 @@ KINDS = {
         v**2 / 2 - q**4 / 4, [q], [v], forces=[-c * v], params={c: 0.3}
     ),
     "time-dependent": lambda: gvi.LagrangianSystem(
-        v**2 / 2 + (1 + sp.cos(t) / 3) * sp.cos(q), [q], [v], t=t, params={c: 0.0}
+        v**2 / 2 + (1 + c * sp.cos(t) / 3) * sp.cos(q), [q], [v], t=t, params={c: 1.0}
     ),
     "angles": lambda: gvi.LagrangianSystem(v**2 / 2 + c * sp.cos(q), [q], [v], params={c: 1.0}),
     "gyroscopic": lambda: gvi.LagrangianSystem(
@@ -150,7 +150,8 @@ def test_tangent_and_sensitivity_match_central_differences(kind):
     system = KINDS[kind]()
     integrator = gvi.Integrator(system, gvi.Galerkin(2))
     run = dict(h=0.05, n_steps=60, t0=0.3)
-    start = np.array([2.5 if kind == "angles" else 0.7, 0.4])
+    # the angle turns over (it is kept in [-pi, pi) with its turns apart)
+    start = np.array([2.5, 2.5]) if kind == "angles" else np.array([0.7, 0.4])
     traj = integrator.integrate(
         start[:1], p0=start[1:], tangent=True, sensitivity=list(system.params), **run
     )
@@ -418,3 +419,33 @@ def test_the_gradient_of_a_constrained_run_in_forward_mode_matches_differences()
     expected = (value(x0, 1 + 1e-6) - value(x0, 1 - 1e-6)) / 2e-6
     assert grad.params[g] == pytest.approx(expected, rel=1e-6)
     assert grad.value == pytest.approx(value(x0), rel=1e-12)
+
+
+def test_sensitivity_of_a_start_given_by_its_velocity_holds_the_velocity_fixed():
+    m = sp.Symbol("m")
+    system = gvi.LagrangianSystem(
+        m * v**2 / 2 - k * q**2 / 2 - q**4 / 4, [q], [v], params={k: 1.0, m: 1.5}
+    )
+    integrator = gvi.Integrator(system, gvi.Galerkin(2))
+    run = dict(h=0.05, n_steps=40)
+    traj = integrator.integrate([0.5], v0=[0.3], sensitivity=[m], **run)
+
+    def final(mass):
+        other = integrator.integrate([0.5], v0=[0.3], params={m: mass}, **run)
+        return np.r_[other.q[-1], other.p[-1]]
+
+    expected = (final(1.5 + 1e-6) - final(1.5 - 1e-6)) / 2e-6
+    np.testing.assert_allclose(traj.sensitivity[-1][:, 0], expected, rtol=1e-7)
+    # and the row of the start: p0 = m v0
+    np.testing.assert_allclose(traj.sensitivity[0][:, 0], [0.0, 0.3], atol=1e-15)
+
+
+def test_a_run_cut_for_instability_keeps_its_tangent_rows_in_step():
+    integrator = gvi.Integrator(oscillator(), gvi.Galerkin(1))
+    for save_every in (1, 7):
+        with pytest.warns(gvi.RunFailureWarning):
+            traj = integrator.integrate(
+                [1.0], v0=[0.0], h=60.0, n_steps=400, tangent=True, save_every=save_every
+            )
+        assert not traj.success
+        assert traj.tangent.shape == (len(traj.t), 2, 2)

@@ -1,22 +1,33 @@
-r"""The tangent map of a run with impacts: the steps' tangent maps and the saltation matrices.
+r"""The tangent map of a run with impacts: the derivative of the discrete run.
 
 Between impacts a run is steps of the method, whose tangent maps the tangent
-loop gives (:mod:`galerkin_vi.run.tangent`); the step cut at an impact is a
-step of length :math:`t^* - t_k` to the impact and one of :math:`t_{k+1} - t^*`
-after it. At the impact the tangent jumps by the saltation matrix
-(Aizerman & Gantmacher 1958; Müller 1995; the hybrid-systems literature)
+loop gives (:mod:`galerkin_vi.run.tangent`). The step cut at an impact is a
+step of length :math:`\tau - t_k` to the impact time :math:`\tau`, the impact
+law :math:`\Delta`, and a step of length :math:`t_{k+1} - \tau` after it, with
+:math:`\tau` the root of the gap along the method's step,
+:math:`\varphi(\Psi_{\tau - t_k}(x_k)) = 0`. Differentiated,
+
+.. math::
+
+    \delta\tau = -\frac{\nabla\varphi^T(D\Psi_1\,\delta x_k)_q}{\nabla\varphi^T(\psi_1)_q},
+    \qquad \delta x^- = D\Psi_1\,\delta x_k + \psi_1\,\delta\tau,
+    \qquad \delta x^+ = D\Delta\,\delta x^-,
+    \qquad \delta x_{k+1} = D\Psi_2\,\delta x^+ - \psi_2\,\delta\tau,
+
+with :math:`\psi = \partial_\tau\Psi_\tau` the derivative of a step in its length,
+the sensitivity of the same step of the system in scaled time
+(:func:`length_system`). This is the discrete counterpart of the saltation
+matrix (Aizerman & Gantmacher 1958; Müller 1995),
 
 .. math::
 
     S = D\Delta + \frac{(f^+ - D\Delta\, f^-)\,\nabla\tilde\varphi^T}
                        {\nabla\tilde\varphi^T f^- + \partial_t\varphi},
 
-in the state :math:`x = (q, p)`: :math:`\Delta(q, p^-) = (q, p^+)` the impact law,
-:math:`f^\pm = (v^\pm, L_q + f)` the vector field before and after it,
-:math:`\tilde\varphi(q, p) = \varphi(t, q)` the gap. The second term moves the
-impact time with the start: a start that reaches the contact earlier has
-longer to move with the velocity after the impact. For the frictionless
-Newton law :math:`L_v(q, v^+) = p^- + \lambda\nabla\varphi`,
+which :func:`saltation_matrix` gives with the continuous vector fields
+:math:`f^\pm = (v^\pm, L_q + f)` and which time-dependent systems use (there the
+tangent is the run's derivative to the method's accuracy only). For the
+frictionless Newton law :math:`L_v(q, v^+) = p^- + \lambda\nabla\varphi`,
 :math:`\nabla\varphi^T v^+ = -e\,\nabla\varphi^T v^-`, the Jacobian :math:`D\Delta`
 follows from the saddle-point system differentiated at :math:`(q, p^-)`:
 
@@ -28,9 +39,7 @@ follows from the saddle-point system differentiated at :math:`(q, p^-)`:
     -e\nabla\varphi^T\delta v^- - (\nabla^2\varphi\,(v^+ + e v^-))^T\delta q\end{pmatrix},
     \quad \delta p^+ = \delta p + \lambda\nabla^2\varphi\,\delta q + \nabla\varphi\,\delta\lambda,
 
-with :math:`\delta v^- = (L_{vv}^-)^{-1}(\delta p - L_{qv}^{-T}\delta q)`. The vector
-fields are the continuous ones: the tangent is the derivative of the discrete
-run to the method's order (exactly so where the method is exact between impacts).
+with :math:`\delta v^- = (L_{vv}^-)^{-1}(\delta p - L_{qv}^{-T}\delta q)`.
 """
 
 from __future__ import annotations
@@ -45,7 +54,13 @@ from ..run.spec import Segment
 from ..run.start import initial_state
 from ..run.tangent import TangentRunner, VariationRequest, Variations
 
-__all__ = ["check_contact_variations", "contact_variations", "saltation_matrix"]
+__all__ = [
+    "check_contact_variations",
+    "contact_variations",
+    "impact_jacobian",
+    "length_system",
+    "saltation_matrix",
+]
 
 
 def check_contact_variations(system, request: VariationRequest, contact_mode: str, h: float):
@@ -86,8 +101,9 @@ def _point_blocks(system, t, q, v, prm):
     return force, lv, lqv, lvv
 
 
-def saltation_matrix(system, functions, impact, q, p_minus, p_plus, prm) -> NDArray:
-    """The saltation matrix S (2n, 2n) of a frictionless ``impact`` at (q, p^-) -> p^+."""
+def impact_jacobian(system, functions, impact, q, p_minus, p_plus, prm):
+    r""":math:`D\Delta` (2n, 2n) of a frictionless ``impact`` at (q, p^-) -> p^+, and the
+    vector fields :math:`f^\pm` before and after it (module docstring)."""
     n = system.n
     t, j = impact.t, impact.contact
     params = dict(zip(system.params, prm, strict=True))
@@ -109,25 +125,150 @@ def saltation_matrix(system, functions, impact, q, p_minus, p_plus, prm) -> NDAr
     jump = np.eye(2 * n)
     jump[n:, :n] += lam * hess + np.outer(g, d_lam[:n])
     jump[n:, n:] += np.outer(g, d_lam[n:])
-    f_minus = np.r_[v_minus, force_m]
-    f_plus = np.r_[v_plus, force_p]
+    return jump, np.r_[v_minus, force_m], np.r_[v_plus, force_p]
+
+
+def saltation_matrix(system, functions, impact, q, p_minus, p_plus, prm) -> NDArray:
+    """The saltation matrix S (2n, 2n) of a frictionless ``impact`` at (q, p^-) -> p^+, with
+    the continuous vector fields (module docstring)."""
+    n = system.n
+    jump, f_minus, f_plus = impact_jacobian(system, functions, impact, q, p_minus, p_plus, prm)
+    g = functions.gradient(impact.contact, impact.t, q, prm)
     normal = np.r_[g, np.zeros(n)]
     rate = 0.0
     rates = system.derived.get(("contact", "gap rates"), lambda: _gap_rates(system, functions))
     if rates is not None:
-        rate = float(np.asarray(rates(t, *q, *v_minus, *prm), dtype=float).ravel()[j])
+        params = dict(zip(system.params, prm, strict=True))
+        v_minus = system.inverse_legendre(q, p_minus, impact.t, params)
+        rate = float(
+            np.asarray(rates(impact.t, *q, *v_minus, *prm), dtype=float).ravel()[impact.contact]
+        )
     return jump + np.outer(f_plus - jump @ f_minus, normal) / (normal @ f_minus + rate)
+
+
+def length_system(system):
+    r"""The system in time scaled by :math:`\sigma`: :math:`\tilde L = \sigma L(q, v/\sigma)`,
+    :math:`\tilde f = \sigma f(q, v/\sigma)`, and :math:`\sigma`.
+
+    A Galerkin step of length h of it is, at any :math:`\sigma`, the step of
+    length :math:`\sigma h` of the system (its discrete Lagrangian is
+    :math:`h\sum_i b_i \sigma L(Q_i, \dot Q_i/\sigma) = L_d(q_0, q_1, \sigma h)`, with
+    the same momenta): the sensitivity to :math:`\sigma` at 1 of a step of length
+    :math:`\tau` is :math:`\tau\,\partial_\tau\Psi_\tau`, the derivative of the
+    discrete flow in its step length. Autonomous systems only.
+    """
+    sigma = sp.Symbol("_gvi_step_scale")
+    scaled = {v: v / sigma for v in system.v}
+    forces = None
+    if system.forces is not None:
+        forces = [sigma * f.xreplace(scaled) for f in system.forces]
+    params = dict(zip(system.params, system.param_defaults, strict=True))
+    params[sigma] = 1.0
+    scaled_system = type(system)(
+        sigma * system.L.xreplace(scaled), list(system.q), list(system.v), params=params,
+        forces=forces,
+    )  # fmt: skip
+    return scaled_system, sigma
 
 
 def contact_variations(integrator, traj, request: VariationRequest, functions, h: float):
     """:class:`Variations` at every row of a run with impacts (its rows before any option).
 
-    Consecutive rows at the same time are an impact's (momentum before, after:
-    the saltation matrix between them); other consecutive rows are one step of
-    the method, of length h (grouped into one call of the tangent loop) or cut
-    at an impact.
+    Consecutive rows at the same time are an impact's (momentum before, after);
+    other consecutive rows are one step of the method, of length h (grouped
+    into one call of the tangent loop) or cut at an impact. Autonomous
+    systems: the derivative of the discrete run, the impact times varied
+    with the start through the cut steps (:func:`length_system`); otherwise
+    the saltation matrix with the continuous vector fields.
     """
+    system, prm = traj.system, traj.params
+    if system.t is not None:
+        return _continuous_saltation(integrator, traj, request, functions, h)
+    scaled_system = system.derived.get(("contact", "length system"), lambda: length_system(system))
+    scaled = system.derived.get(
+        ("contact", "length system", integrator.method, integrator.tol, integrator.maxiter),
+        lambda: _scaled_integrator(integrator, scaled_system),
+    )
+    t, q, p = traj.t, traj.q, traj.p
+    rows = len(t)
+    frames = np.empty((rows, 2 * system.n, request.directions.shape[1]))
+    frames[0] = request.directions
+    shift = np.zeros(request.directions.shape[1])  # d(time of the row) / d(start), per column
+    impacts = iter(traj.impacts or [])
+    i = 0
+    while i < rows - 1:
+        if t[i + 1] == t[i]:
+            frames[i + 1] = frames[i]
+            if not np.array_equal(p[i + 1], p[i]):
+                impact = next(impacts)
+                jump, _, _ = impact_jacobian(system, functions, impact, q[i], p[i], p[i + 1], prm)
+                frames[i + 1] = jump @ frames[i]
+            i += 1
+            continue
+        before_impact = i + 2 < rows and t[i + 2] == t[i + 1]
+        if _is_step(t, i, h) and not before_impact and not shift.any():
+            m = 1
+            while i + m < rows - 1 and _is_step(t, i + m, h) and not _impact_next(t, i + m):
+                m += 1
+            frames[i + 1 : i + m + 1] = _steps(integrator, request, frames[i], t[i], q[i], p[i],
+                                               h, m, prm)  # fmt: skip
+            i += m
+            continue
+        # a step whose start or end is an impact: its length varies with the start
+        moved, rate = _cut_step(scaled, frames[i], t[i], q[i], p[i], float(t[i + 1] - t[i]), prm)
+        if before_impact:
+            j = next_contact(traj, t[i + 1])
+            g = functions.gradient(j, t[i + 1], q[i + 1], prm)
+            new_shift = shift - (g @ moved[: system.n]) / (g @ rate[: system.n])
+        else:
+            new_shift = np.zeros_like(shift)
+        frames[i + 1] = moved + np.outer(rate, new_shift - shift)
+        shift = new_shift
+        i += 1
+    return Variations(tangent=frames, sensitivity=None, parameters=())
+
+
+def next_contact(traj, t_hit: float) -> int:
+    """The contact of the first impact at time ``t_hit``."""
+    return next(imp.contact for imp in traj.impacts if imp.t == t_hit)
+
+
+def _impact_next(t, i: int) -> bool:
+    """Whether the row after row i + 1 is an impact's second row (row i + 1 meets it)."""
+    return i + 2 < len(t) and t[i + 2] == t[i + 1]
+
+
+def _steps(integrator, request, frame, t0, q0, p0, h, m, prm):
+    """The frames after m steps of length h from (t0, q0, p0)."""
     spec = integrator.tangent_run_spec
+    q, p, v = initial_state(spec, q0, None, p0, float(t0), prm)
+    runner = TangentRunner(spec, replace(request, directions=frame.copy()), float(t0))
+    part, result = runner(Segment(q, p, v, float(t0), h, m, 1, prm))
+    if result.status != 0:
+        raise RuntimeError(f"the tangent of the steps from t = {t0:.6g} failed: {part.message}")
+    return part.variations.tangent[1:]
+
+
+def _scaled_integrator(integrator, scaled):
+    system, sigma = scaled
+    return type(integrator)(system, integrator.method, tol=integrator.tol,
+                            maxiter=integrator.maxiter), sigma  # fmt: skip
+
+
+def _cut_step(scaled, frame, t0, q0, p0, length, prm):
+    r"""A step of ``length`` from (q0, p0): the frame moved by its tangent map, and
+    :math:`\partial_\tau\Psi_\tau` there (the derivative in the step's length)."""
+    aux, sigma = scaled
+    params = dict(zip(aux.system.params, [*prm, 1.0], strict=True))
+    run = aux.integrate(
+        q0, p0=p0, h=length, n_steps=1, t0=float(t0), params=params, tangent=frame,
+        sensitivity=[sigma], on_failure="raise",
+    )  # fmt: skip
+    return run.tangent[-1], run.sensitivity[-1][:, 0] / length
+
+
+def _continuous_saltation(integrator, traj, request, functions, h):
+    """The tangent with the continuous saltation matrix (time-dependent systems)."""
     system, prm = traj.system, traj.params
     t, q, p = traj.t, traj.q, traj.p
     rows = len(t)
@@ -149,14 +290,8 @@ def contact_variations(integrator, traj, request: VariationRequest, functions, h
             step = h
             while i + m < rows - 1 and _is_step(t, i + m, h):
                 m += 1
-        q0, p0, v0 = initial_state(spec, q[i], None, p[i], float(t[i]), prm)
-        runner = TangentRunner(spec, replace(request, directions=frames[i].copy()), float(t[i]))
-        part, result = runner(Segment(q0, p0, v0, float(t[i]), step, m, 1, prm))
-        if result.status != 0:
-            raise RuntimeError(
-                f"the tangent of the step from t = {t[i]:.6g} failed: {part.message}"
-            )
-        frames[i + 1 : i + m + 1] = part.variations.tangent[1:]
+        frames[i + 1 : i + m + 1] = _steps(integrator, request, frames[i], t[i], q[i], p[i],
+                                           step, m, prm)  # fmt: skip
         i += m
     return Variations(tangent=frames, sensitivity=None, parameters=())
 

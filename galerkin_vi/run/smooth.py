@@ -72,9 +72,13 @@ def integrate_smooth(
 
     run_chunk = lambda segment: run_once(spec, segment)  # noqa: E731
     if variations is not None:
-        from .tangent import TangentRunner
+        from .tangent import TangentRunner, initial_sensitivity
 
-        run_chunk = TangentRunner(spec, variations, plan.t0)
+        start = None
+        if v0 is not None and variations.parameters:
+            # the start's momentum depends on the parameters through L_v(q0, v0)
+            start = initial_sensitivity(system, variations.parameters, plan.t0, q, v, prm)
+        run_chunk = TangentRunner(spec, variations, plan.t0, start)
     traj, result, interrupted = run_in_chunks(
         first, run_chunk, restart, progress,
         terminal_stop(event_list, event_functions, prm),

@@ -156,6 +156,22 @@ def _parameters(system, sensitivity) -> tuple[tuple, tuple[int, ...]]:
     return tuple(chosen), tuple(params.index(s) for s in chosen)
 
 
+def initial_sensitivity(system, parameters: tuple, t0: float, q, v, prm) -> NDArray[np.float64]:
+    r""":math:`\partial(q_0, p_0)/\partial\theta` of a start given by its velocity:
+    :math:`p_0 = L_v(t_0, q_0, v_0; \theta)`, so the momenta's rows are
+    :math:`\partial L_v/\partial\theta` (the positions' are zero)."""
+    n = system.n
+
+    def build():
+        lv = sp.Matrix(system.pieces.Lv)
+        return sp.lambdify(system.arguments, lv.jacobian(list(parameters)), "numpy")
+
+    jacobian = system.derived.get(("tangent", "legendre in parameters", parameters), build)
+    out = np.zeros((2 * n, len(parameters)))
+    out[n:] = np.asarray(jacobian(t0, *q, *v, *prm), dtype=float).reshape(n, len(parameters))
+    return out
+
+
 def parameter_addresses(system, parameters: tuple) -> NDArray[np.int64]:
     """Point-function addresses of the parameter derivatives (slot GRADIENT), compiled once
     per system and parameter list and kept with the system's derived data."""
@@ -260,7 +276,8 @@ def with_event_row(spec: RunSpec, request: VariationRequest, traj: Trajectory) -
     The event's row is the state at the event time :math:`t_e`, between steps k
     and k + 1; its variations are those of the step of length :math:`t_e - t_k`
     from row k: the derivative of the state at the time :math:`t_e` held fixed
-    (the event time's own dependence on the start is not included).
+    (the event time's own dependence on the start is not included). NaN if that
+    step fails.
     """
     var = traj.variations
     rows = len(traj.t)
@@ -288,7 +305,10 @@ def with_event_row(spec: RunSpec, request: VariationRequest, traj: Trajectory) -
         if whole is None:
             continue
         value = getattr(step.variations, name)
-        value = whole[k] if value is None or result.status != 0 else value[-1]
+        if result.status != 0:
+            value = np.full_like(whole[k], np.nan)  # the step to the event failed
+        else:
+            value = whole[k] if value is None else value[-1]
         last[name] = np.concatenate([whole[: rows - 1], value[None]])
     return replace(traj, variations=replace(kept, **last))
 

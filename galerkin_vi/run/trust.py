@@ -174,8 +174,12 @@ def trusted(
             # the last trusted state lies between saved rows end - 1 and end
             kept = slice(0, end)
             # q_reduced dropped: the row appended below has none (diagnostics reduce)
-            head = replace(traj, t=traj.t[kept], q=traj.q[kept], p=traj.p[kept], q_reduced=None)
-            if inner > 1:
+            head = replace(
+                traj, t=traj.t[kept], q=traj.q[kept], p=traj.p[kept], q_reduced=None,
+                variations=_rows_of(traj.variations, kept),
+            )  # fmt: skip
+            # (a run carrying the tangent keeps its saved rows only: the fine rerun has none)
+            if inner > 1 and traj.variations is None:
                 head = replace(
                     head,
                     t=np.append(head.t, fine.t[inner - 1]),
@@ -211,6 +215,12 @@ def _untrusted(traj, keep, step, rows, r, h, failure) -> Trajectory:
         q=traj.q[kept],
         p=traj.p[kept],
         q_reduced=None if traj.q_reduced is None else traj.q_reduced[kept],
+        variations=_rows_of(traj.variations, kept),
         status=RunStatus.UNSTABLE,
         message=message,
     )
+
+
+def _rows_of(variations, kept):
+    """The tangent-map record at the rows kept (None without one)."""
+    return None if variations is None else variations.rows(kept)

@@ -108,9 +108,10 @@ class Gradient(SolverResult):
         The forward run's segment starts and its last state.
     mode : {"adjoint", "forward"}
         How the sums were formed: the reverse pass, or (constrained systems,
-        whose momentum projection has no reverse pass yet) the tangent map
-        carried forward with 2n + P directions: the same derivatives, at n
-        times the cost.
+        whose momentum projection has no reverse pass yet, and systems with
+        contacts, whose impacts do not either) the tangent map carried
+        forward with 2n + P directions: the same derivatives, at n times the
+        cost.
     status : RunStatus
     message : str
     """
@@ -182,7 +183,12 @@ def gradient(
     M = int(checkpoint_every or (n_steps if whole else 4 * (math.isqrt(n_steps - 1) + 1)))  # noqa: N806
     if M < 1:
         raise ValueError(f"checkpoint_every must be >= 1, got {checkpoint_every}")
-    if system.m:
+    if system.contacts and loss.running is not None:
+        raise ValueError(
+            "gradient with contacts: running loss terms are not supported (a run with "
+            "impacts has rows off the step grid); give a terminal loss"
+        )
+    if system.m or system.contacts:
         outcome = _forward_mode(
             integrator, terms, q, p, float(t0), float(h), n_steps, M, thetas, prm
         )
