@@ -194,7 +194,15 @@ def tangent_loop_parts(spec: RunSpec) -> tuple:
         _, before, after = spec.loop_parts("constrained")
         return loops.constrained_tangent_loop, before, after
     _, before, after = spec.loop_parts("newton")
-    return loops.tangent_loop, before, after
+    return loops.tangent_loop, tangent_couplings(before), after
+
+
+def tangent_couplings(before: tuple) -> tuple:
+    """The general loop's model part with its couplings as run-time flags always: the
+    tangent loop's work per step dwarfs their tests, and one compiled variant fewer
+    per storage kind halves what the warm-up compiles for it."""
+    fn, traits, pattern, periodic, couplings = before
+    return fn, traits, pattern, periodic, couplings or (False, False)
 
 
 class TangentRunner:
@@ -340,6 +348,7 @@ def recorded_steps(spec: RunSpec, segment: Segment, fnp: NDArray[np.int64]) -> R
     rows = out.t.shape[0]
     stages = np.zeros((n_steps, spec.method.tables.d.shape[0], n))
     _, before, after = spec.loop_parts("newton")
+    before = tangent_couplings(before)
     empty = np.zeros((2 * n, 0))
     result = LoopResult(
         *tangent_loop(

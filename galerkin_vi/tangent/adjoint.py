@@ -49,7 +49,7 @@ from numpy.typing import NDArray
 from ..run.spec import Segment
 from ..run.start import initial_state
 from ..run.status import RunStatus, SolverResult, loop_status
-from ..run.tangent import parameter_addresses, recorded_steps
+from ..run.tangent import parameter_addresses, recorded_steps, tangent_couplings
 from ..run.trajectory import Trajectory
 
 __all__ = ["Gradient", "Loss", "gradient", "warm_up_adjoint"]
@@ -208,7 +208,7 @@ def gradient(
     from ..loops import adjoint_sweep
 
     _, before, after = spec.loop_parts("newton")
-    fn, traits, pattern, _periodic, couplings = before
+    fn, traits, pattern, _periodic, couplings = tangent_couplings(before)
     tb = spec.method.tables
     traj_end = None
     for index in range(len(starts) - 1, -1, -1):
