@@ -54,8 +54,9 @@ from ..run.trajectory import Trajectory
 
 __all__ = ["Gradient", "Loss", "gradient", "warm_up_adjoint"]
 
-#: runs of at most this many steps are recorded whole (no checkpoints)
-RECORD_WHOLE = 2048
+#: runs whose recorded steps (states and control points) take at most this many bytes
+#: are recorded whole: no checkpoints, and no extra forward pass
+RECORD_BYTES = 32 * 2**20
 
 WRT = ("q0", "v0", "p0", "params")
 
@@ -158,8 +159,8 @@ def gradient(
         What to differentiate with respect to; ``"v0"`` needs ``v0`` given,
         ``"p0"`` needs ``p0``; ``"params"`` means every parameter of the system.
     checkpoint_every : int, optional
-        Steps per recorded segment; default :math:`4\lceil\sqrt N\rceil` for runs
-        over ``RECORD_WHOLE`` steps, else the whole run.
+        Steps per recorded segment; default the whole run when its record fits in
+        ``RECORD_BYTES`` (32 MiB), else :math:`4\lceil\sqrt N\rceil`.
 
     Returns
     -------
@@ -179,7 +180,8 @@ def gradient(
         lambda: LossTerms(system, loss, thetas),
     )
     q, p, v = initial_state(spec, q0, v0, p0, t0, prm, False)
-    whole = n_steps <= RECORD_WHOLE
+    n, s1 = system.n, spec.method.tables.d.shape[0]
+    whole = n_steps * (s1 * n + 2 * n + 1) * 8 <= RECORD_BYTES
     M = int(checkpoint_every or (n_steps if whole else 4 * (math.isqrt(n_steps - 1) + 1)))  # noqa: N806
     if M < 1:
         raise ValueError(f"checkpoint_every must be >= 1, got {checkpoint_every}")
