@@ -127,3 +127,19 @@ def test_what_the_tangent_with_contacts_does_not_cover_names_the_reason():
         rough.integrate([0.0, 1.0], v0=[0.0, 0.0], tangent=True, **run)
     with pytest.raises(ValueError, match="t_eval"):
         integrator.integrate([0.0, 1.0], v0=[0.0, 0.0], tangent=True, t_eval=[0.05], **run)
+
+
+def test_time_dependent_systems_take_the_continuous_saltation_matrix():
+    t = sp.Symbol("t")
+    contact = gvi.Contact(gap=y, restitution=0.8)
+    system = gvi.LagrangianSystem(
+        (vx**2 + vy**2) / 2 - (1 + sp.cos(t) / 10) * y, [x, y], [vx, vy], t=t,
+        contacts=[contact],
+    )  # fmt: skip
+    integrator = gvi.Integrator(system, gvi.Galerkin(2))
+    run = dict(h=0.01, n_steps=300)
+    x0 = np.array([0.0, 1.0, 0.3, 0.2])
+    traj = integrator.integrate(x0[:2], p0=x0[2:], tangent=True, **run)
+    assert len(traj.impacts) == 1
+    # the run's derivative to the method's accuracy (the impact time moves the cut steps)
+    np.testing.assert_allclose(traj.tangent[-1], differences(integrator, x0, 2, run), atol=1e-5)

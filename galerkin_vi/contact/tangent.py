@@ -182,13 +182,15 @@ def contact_variations(integrator, traj, request: VariationRequest, functions, h
     the saltation matrix with the continuous vector fields.
     """
     system, prm = traj.system, traj.params
-    if system.t is not None:
-        return _continuous_saltation(integrator, traj, request, functions, h)
-    scaled_system = system.derived.get(("contact", "length system"), lambda: length_system(system))
-    scaled = system.derived.get(
-        ("contact", "length system", integrator.method, integrator.tol, integrator.maxiter),
-        lambda: _scaled_integrator(integrator, scaled_system),
-    )
+    discrete = system.t is None
+    if discrete:
+        scaled_system = system.derived.get(
+            ("contact", "length system"), lambda: length_system(system)
+        )
+        scaled = system.derived.get(
+            ("contact", "length system", integrator.method, integrator.tol, integrator.maxiter),
+            lambda: _scaled_integrator(integrator, scaled_system),
+        )
     t, q, p = traj.t, traj.q, traj.p
     rows = len(t)
     frames = np.empty((rows, 2 * system.n, request.directions.shape[1]))
@@ -201,27 +203,30 @@ def contact_variations(integrator, traj, request: VariationRequest, functions, h
             frames[i + 1] = frames[i]
             if not np.array_equal(p[i + 1], p[i]):
                 impact = next(impacts)
-                jump, _, _ = impact_jacobian(system, functions, impact, q[i], p[i], p[i + 1], prm)
-                frames[i + 1] = jump @ frames[i]
+                law = impact_jacobian if discrete else saltation_matrix
+                matrix = law(system, functions, impact, q[i], p[i], p[i + 1], prm)
+                frames[i + 1] = (matrix[0] if discrete else matrix) @ frames[i]
             i += 1
             continue
-        before_impact = i + 2 < rows and t[i + 2] == t[i + 1]
-        if _is_step(t, i, h) and not before_impact and not shift.any():
-            m = 1
-            while i + m < rows - 1 and _is_step(t, i + m, h) and not _impact_next(t, i + m):
-                m += 1
+        before_impact = _impact_next(t, i)
+        if not discrete or (_is_step(t, i, h) and not before_impact and not shift.any()):
+            # steps of fixed length (of h, grouped; or cut, one by one, without moving)
+            m, length = 1, float(t[i + 1] - t[i])
+            if _is_step(t, i, h):
+                length = h
+                while i + m < rows - 1 and _is_step(t, i + m, h) and not _impact_next(t, i + m):
+                    m += 1
             frames[i + 1 : i + m + 1] = _steps(integrator, request, frames[i], t[i], q[i], p[i],
-                                               h, m, prm)  # fmt: skip
+                                               length, m, prm)  # fmt: skip
             i += m
             continue
         # a step whose start or end is an impact: its length varies with the start
         moved, rate = _cut_step(scaled, frames[i], t[i], q[i], p[i], float(t[i + 1] - t[i]), prm)
+        new_shift = np.zeros_like(shift)
         if before_impact:
             j = next_contact(traj, t[i + 1])
             g = functions.gradient(j, t[i + 1], q[i + 1], prm)
             new_shift = shift - (g @ moved[: system.n]) / (g @ rate[: system.n])
-        else:
-            new_shift = np.zeros_like(shift)
         frames[i + 1] = moved + np.outer(rate, new_shift - shift)
         shift = new_shift
         i += 1
@@ -265,35 +270,6 @@ def _cut_step(scaled, frame, t0, q0, p0, length, prm):
         sensitivity=[sigma], on_failure="raise",
     )  # fmt: skip
     return run.tangent[-1], run.sensitivity[-1][:, 0] / length
-
-
-def _continuous_saltation(integrator, traj, request, functions, h):
-    """The tangent with the continuous saltation matrix (time-dependent systems)."""
-    system, prm = traj.system, traj.params
-    t, q, p = traj.t, traj.q, traj.p
-    rows = len(t)
-    frames = np.empty((rows, 2 * system.n, request.directions.shape[1]))
-    frames[0] = request.directions
-    impacts = iter(traj.impacts or [])
-    i = 0
-    while i < rows - 1:
-        if t[i + 1] == t[i]:
-            frames[i + 1] = frames[i]
-            if not np.array_equal(p[i + 1], p[i]):
-                impact = next(impacts)
-                salt = saltation_matrix(system, functions, impact, q[i], p[i], p[i + 1], prm)
-                frames[i + 1] = salt @ frames[i]
-            i += 1
-            continue
-        m, step = 1, float(t[i + 1] - t[i])
-        if _is_step(t, i, h):
-            step = h
-            while i + m < rows - 1 and _is_step(t, i + m, h):
-                m += 1
-        frames[i + 1 : i + m + 1] = _steps(integrator, request, frames[i], t[i], q[i], p[i],
-                                           step, m, prm)  # fmt: skip
-        i += m
-    return Variations(tangent=frames, sensitivity=None, parameters=())
 
 
 def _is_step(t: NDArray, i: int, h: float) -> bool:

@@ -59,12 +59,13 @@ from .general import make_work
 from .linalg import lu_factor_inplace, lu_solve_inplace
 from .point import point_constraint_hessian, point_constraint_jacobian, point_hessian
 from .tangent import (
-    first_column_log_norm,
+    advance_chaos,
+    finish_chaos,
     linearize,
     make_tangent_work,
-    orthonormalize,
     point_variation,
     save_variations,
+    start_chaos,
 )
 from .traits import HAS_FV, HAS_LQV
 
@@ -300,17 +301,8 @@ def constrained_tangent_loop(
     p_next = np.zeros(n)
     vk = v0.copy()
     first_guess(C, d, h, v0)
-    growth = megno[:n_dir]
-    sums = np.zeros(5)
-    sums[0] = megno[n_dir]
-    sums[1] = megno[n_dir + 1]
     chaos = renormalize_every > 0
-    if chaos:
-        sums[2] = first_column_log_norm(T, growth)
-        if t0 > t_origin:
-            sums[3] = 2.0 * sums[0] / (t0 - t_origin)
-        steps_before = int(round((t0 - t_origin) / h))
-        sums[4] = sums[1] / steps_before if steps_before > 0 else 0.0
+    growth, sums = start_chaos(T, megno, t0, t_origin, h, chaos)
     saved = save_row(0, t0, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic)
     save_variations(0, T, S, growth, sums, T_out, S_out, growth_out, megno_out)
     worst = 0.0
@@ -389,16 +381,9 @@ def constrained_tangent_loop(
             pk[a] = p_next[a]
         advance_position(qk, q_lost, C, turns, periodic)
         if chaos:
-            t_next = tk + h - t_origin
-            log_norm = first_column_log_norm(T, growth)
-            sums[0] += t_next * (log_norm - sums[2])
-            sums[2] = log_norm
-            sums[3] = 2.0 * sums[0] / t_next
-            sums[1] += sums[3]
-            sums[4] = sums[1] / int(round(t_next / h))
-            if (k + 1) % renormalize_every == 0:
-                if not orthonormalize(T, growth):
-                    return STATUS_NONFINITE, k + 1, saved, worst, 0.0
+            due = (k + 1) % renormalize_every == 0
+            if not advance_chaos(T, growth, sums, tk + h - t_origin, h, due):
+                return STATUS_NONFINITE, k + 1, saved, worst, 0.0
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             row = saved
             saved = save_row(
@@ -406,7 +391,6 @@ def constrained_tangent_loop(
                 periodic,
             )  # fmt: skip
             save_variations(row, T, S, growth, sums, T_out, S_out, growth_out, megno_out)
-    megno[n_dir] = sums[0]
-    megno[n_dir + 1] = sums[1]
+    finish_chaos(megno, sums, n_dir)
     _ = stages_out
     return STATUS_OK, n_steps, saved, worst, 0.0

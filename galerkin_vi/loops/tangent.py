@@ -355,6 +355,46 @@ def first_column_log_norm(T, growth):
 
 
 @kernel
+def start_chaos(T, megno, t0, t_origin, h, chaos):
+    """The frame's log-growths (a view of ``megno``) and the chaos sums of a call:
+    ``[W, sum of Y, log |delta|, Y, mean of Y]``, the first two carried in ``megno``."""
+    r = T.shape[1]
+    growth = megno[:r]
+    sums = np.zeros(5)
+    sums[0] = megno[r + MEGNO_W]
+    sums[1] = megno[r + MEGNO_YSUM]
+    if chaos:
+        sums[2] = first_column_log_norm(T, growth)
+        if t0 > t_origin:
+            sums[3] = 2.0 * sums[0] / (t0 - t_origin)
+        steps_before = int(round((t0 - t_origin) / h))
+        sums[4] = sums[1] / steps_before if steps_before > 0 else 0.0
+    return growth, sums
+
+
+@kernel
+def advance_chaos(T, growth, sums, elapsed, h, renormalize):
+    """MEGNO's sums after a step ending ``elapsed`` after the run's start, then the
+    renormalisation if due; False if the frame degenerated."""
+    log_norm = first_column_log_norm(T, growth)
+    sums[0] += elapsed * (log_norm - sums[2])
+    sums[2] = log_norm
+    sums[3] = 2.0 * sums[0] / elapsed
+    sums[1] += sums[3]
+    sums[4] = sums[1] / int(round(elapsed / h))
+    if renormalize:
+        return orthonormalize(T, growth)
+    return True
+
+
+@kernel
+def finish_chaos(megno, sums, r):
+    """Carry the MEGNO sums to the next call."""
+    megno[r + MEGNO_W] = sums[0]
+    megno[r + MEGNO_YSUM] = sums[1]
+
+
+@kernel
 def save_variations(row, T, S, growth, sums, T_out, S_out, growth_out, megno_out):
     """Store the frame, the sensitivities and the chaos sums (Y, its mean) in row ``row``."""
     for a in range(T.shape[0]):
@@ -460,11 +500,8 @@ def tangent_loop(
     dLv = np.zeros(n)
     dq = np.zeros(n)
     dp = np.zeros(n)
-    growth = megno[:n_dir]
-    sums = np.zeros(5)  # W, sum of Y, log|delta|, Y, mean of Y (the last two saved)
-    sums[0] = megno[n_dir + MEGNO_W]
-    sums[1] = megno[n_dir + MEGNO_YSUM]
     chaos = renormalize_every > 0
+    growth, sums = start_chaos(T, megno, t0, t_origin, h, chaos)
     banded = pattern is not None
     inv_h = 1.0 / h
     factored = False  # K holds the factors of the Jacobian at the last step's solution
@@ -480,14 +517,6 @@ def tangent_loop(
         wrap_angles(qk, q_lost, turns, periodic)
     pk = p0.copy()
     first_guess(C, d, h, v0)
-    if chaos:
-        sums[2] = first_column_log_norm(T, growth)
-        sums[3] = 0.0
-        if t0 > t_origin:
-            sums[3] = 2.0 * sums[0] / (t0 - t_origin)
-        # the mean over the steps so far: Y's sum over the steps between t_origin and t0
-        steps_before = int(round((t0 - t_origin) / h))
-        sums[4] = sums[1] / steps_before if steps_before > 0 else 0.0
     saved = save_row(0, t0, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic)
     save_variations(0, T, S, growth, sums, T_out, S_out, growth_out, megno_out)
     worst = 0.0
@@ -627,17 +656,9 @@ def tangent_loop(
         compensated_add(pk, p_lost, dpk)
         advance_position(qk, q_lost, C, turns, periodic)
         if chaos:
-            t_next = tk + h - t_origin
-            log_norm = first_column_log_norm(T, growth)
-            sums[0] += t_next * (log_norm - sums[2])
-            sums[2] = log_norm
-            sums[3] = 2.0 * sums[0] / t_next
-            sums[1] += sums[3]
-            steps_so_far = int(round(t_next / h))
-            sums[4] = sums[1] / steps_so_far
-            if (k + 1) % renormalize_every == 0:
-                if not orthonormalize(T, growth):
-                    return STATUS_NONFINITE, k + 1, saved, worst, 0.0
+            due = (k + 1) % renormalize_every == 0
+            if not advance_chaos(T, growth, sums, tk + h - t_origin, h, due):
+                return STATUS_NONFINITE, k + 1, saved, worst, 0.0
         if (k + 1) % save_every == 0 or k + 1 == n_steps:
             row = saved
             saved = save_row(
@@ -645,8 +666,7 @@ def tangent_loop(
                 periodic,
             )  # fmt: skip
             save_variations(row, T, S, growth, sums, T_out, S_out, growth_out, megno_out)
-    megno[n_dir + MEGNO_W] = sums[0]
-    megno[n_dir + MEGNO_YSUM] = sums[1]
+    finish_chaos(megno, sums, n_dir)
     return STATUS_OK, n_steps, saved, worst, 0.0
 
 
