@@ -404,6 +404,8 @@ class Integrator:
         save_every: int = 1,
         project: bool = False,
         on_failure: str = "warn",
+        tangent: bool | ArrayLike | None = None,
+        sensitivity: Sequence[sp.Symbol | str] | None = None,
     ) -> Iterator[Trajectory]:
         """:meth:`integrate` in chunks of ``chunk_steps`` steps, yielding each chunk.
 
@@ -423,6 +425,10 @@ class Integrator:
         ----------
         chunk_steps : int
             Steps per chunk, a positive multiple of ``save_every``.
+        tangent, sensitivity
+            As for :meth:`integrate`, carried across the chunks (chaos
+            indicators' ``renormalize_every`` is for :meth:`integrate`, whose
+            chunks carry their sums).
         Other parameters
             As for :meth:`integrate`.
 
@@ -446,9 +452,11 @@ class Integrator:
         """
         # validated here, when stream() is called, not at the first next()
         check_stream_arguments(n_steps, chunk_steps, save_every, on_failure)
+        variation_request(self.system, tangent, sensitivity, 0)  # checked now, too
         return stream_chunks(
             self.integrate, q0, v0, p0, h=h, n_steps=int(n_steps), chunk_steps=int(chunk_steps),
             t0=t0, params=params, save_every=save_every, project=project, on_failure=on_failure,
+            tangent=tangent, sensitivity=sensitivity,
         )  # fmt: skip
 
     def integrate_many(

@@ -449,3 +449,21 @@ def test_a_run_cut_for_instability_keeps_its_tangent_rows_in_step():
             )
         assert not traj.success
         assert traj.tangent.shape == (len(traj.t), 2, 2)
+
+
+def test_streamed_chunks_carry_the_tangent_and_the_sensitivities():
+    integrator = gvi.Integrator(double_pendulum(), gvi.Galerkin(2))
+    run = dict(h=0.01, n_steps=250)
+    whole = integrator.integrate([0.5, 0.3], v0=[0.1, -0.2], tangent=True, sensitivity=[g], **run)
+    chunks = list(
+        integrator.stream([0.5, 0.3], v0=[0.1, -0.2], chunk_steps=100, tangent=True,
+                          sensitivity=[g], **run)  # fmt: skip
+    )
+    assert [len(c) for c in chunks] == [101, 100, 50]
+    tangent = np.concatenate([c.tangent for c in chunks])
+    sensitivity = np.concatenate([c.sensitivity for c in chunks])
+    # equal up to the round-off of the joins (each chunk starts Newton afresh)
+    np.testing.assert_allclose(tangent, whole.tangent, rtol=1e-9, atol=1e-10)
+    np.testing.assert_allclose(sensitivity, whole.sensitivity, rtol=1e-9, atol=1e-10)
+    with pytest.raises(ValueError, match="shape"):
+        integrator.stream([0.5, 0.3], v0=[0.1, -0.2], chunk_steps=100, tangent=np.ones(3), **run)

@@ -6,6 +6,7 @@ import numbers
 from collections.abc import Callable, Iterator
 from dataclasses import replace
 
+import numpy as np
 from numpy.typing import ArrayLike
 
 from ..errors import ConvergenceError
@@ -40,13 +41,17 @@ def check_stream_arguments(n_steps, chunk_steps, save_every, on_failure) -> None
 def stream_chunks(
     integrate: Callable[..., Trajectory], q0: ArrayLike, v0, p0, *, h, n_steps: int,
     chunk_steps: int, t0, params, save_every: int, project: bool, on_failure: str,
+    tangent=None, sensitivity=None,
 ) -> Iterator[Trajectory]:  # fmt: skip
-    """The chunks of a run of ``n_steps``, each ``integrate(q, v0=, p0=, ...)`` of at most
+    r"""The chunks of a run of ``n_steps``, each ``integrate(q, v0=, p0=, ...)`` of at most
     ``chunk_steps`` steps from where the last ended (see :meth:`Integrator.stream`).
 
     Every chunk after the first leaves out its first row (the previous chunk's last);
     angles continue across chunks from their reduced values, their whole turns added
-    back. A failure is reported in the step count of the whole run.
+    back. A failure is reported in the step count of the whole run. The tangent and
+    the sensitivities carry across the joins: a later chunk starts from the frame
+    :math:`[\Phi, S]` of the last row, and its sensitivities add its own
+    (:math:`S = \Phi_{chunk} S_{join} + S_{chunk}`).
     """
     done = 0
     previous = None  # the last chunk yielded (its angles' whole turns carry to the next)
@@ -56,11 +61,18 @@ def stream_chunks(
     while previous is None or done < n_steps:
         first = previous is None
         steps = min(chunk_steps, n_steps - done)
+        variations = {"tangent": tangent, "sensitivity": sensitivity}
+        if not first and previous.variations is not None:
+            variations = continued_variations(previous.variations, sensitivity)
         try:
             chunk = integrate(
                 q_start, **start, h=h, n_steps=steps, t0=t_start, params=params,
                 save_every=save_every, project=project and first, on_failure="raise",
+                **variations,
             )  # fmt: skip
+            if not first and previous.variations is not None:
+                chunk = replace(chunk, variations=joined_variations(previous.variations,
+                                                                    chunk.variations))  # fmt: skip
         except ConvergenceError as exc:
             exc.step += done
             partial = exc.partial if first else carry_turns(previous, exc.partial)
@@ -78,3 +90,22 @@ def stream_chunks(
         q_start = chunk.q_reduced[-1] if chunk.q_reduced is not None else chunk.q[-1]
         start = {"v0": None, "p0": chunk.p[-1]}
         t_start = float(t0) + done * h  # not chunk.t[-1]: no rounding accumulates
+
+
+def continued_variations(last, sensitivity) -> dict:
+    """The ``tangent`` and ``sensitivity`` arguments of the chunk after one whose
+    variations are ``last``: the frame [Phi, S] of its last row as the directions."""
+    parts = [part[-1] for part in (last.tangent, last.sensitivity) if part is not None]
+    return {"tangent": np.hstack(parts), "sensitivity": sensitivity}
+
+
+def joined_variations(last, new):
+    """The variations of a chunk run from :func:`continued_variations`' frame, split
+    back into the tangent and the accumulated sensitivities."""
+    r = 0 if last.tangent is None else last.tangent.shape[2]
+    frame = new.tangent
+    tangent = frame[:, :, :r] if last.tangent is not None else None
+    sensitivity = None
+    if last.sensitivity is not None:
+        sensitivity = frame[:, :, r:] + new.sensitivity
+    return replace(new, tangent=tangent, sensitivity=sensitivity)
