@@ -243,6 +243,123 @@ def propagate(
 
 
 @kernel
+def block_product(M, X, Y, w, pattern, n, transpose):
+    """Y += w M X (or w M^T X) for a flat point matrix M and blocks X, Y of shape (n, r):
+    every direction at once, the directions innermost."""
+    r = X.shape[1]
+    if pattern is None:
+        for a in range(n):
+            for cc in range(n):
+                m = w * M[a * n + cc]
+                if m != 0.0:
+                    if transpose:
+                        for j in range(r):
+                            Y[cc, j] += m * X[a, j]
+                    else:
+                        for j in range(r):
+                            Y[a, j] += m * X[cc, j]
+    else:
+        for k in range(pattern.shape[0]):
+            m = w * M[k]
+            a = pattern[k, 0]
+            cc = pattern[k, 1]
+            if transpose:
+                for j in range(r):
+                    Y[cc, j] += m * X[a, j]
+            else:
+                for j in range(r):
+                    Y[a, j] += m * X[cc, j]
+
+
+@kernel
+def block_variation(i, dQ, dV, HQQ, HQV, HVV, HFV, TQ, TV, first_theta, dLq, dLv, with_v,
+                    traits, pattern):  # fmt: skip
+    """:func:`point_variation` for the blocks of all directions (n, r): columns from
+    ``first_theta`` on are parameter sensitivities, in the order of the parameters."""
+    n, r = dQ.shape
+    dLq[:, :] = 0.0
+    block_product(HQQ[i], dQ, dLq, 1.0, pattern, n, False)
+    if traits[HAS_LQV] != 0:
+        block_product(HQV[i], dV, dLq, 1.0, pattern, n, False)
+    if traits[HAS_FV] != 0:
+        block_product(HFV[i], dV, dLq, 1.0, pattern, n, False)
+    if with_v:
+        dLv[:, :] = 0.0
+        block_product(HVV[i], dV, dLv, 1.0, pattern, n, False)
+        if traits[HAS_LQV] != 0:
+            block_product(HQV[i], dQ, dLv, 1.0, pattern, n, True)
+    P = r - first_theta
+    for j in range(P):
+        for a in range(n):
+            dLq[a, first_theta + j] += TQ[i, a * P + j]
+            if with_v:
+                dLv[a, first_theta + j] += TV[i, a * P + j]
+
+
+@kernel
+def propagate_block(
+    W, first_theta, h, b, Phi, D, HQQ, HQV, HVV, HFV, TQ, TV, K, piv, RB, dQ, dV, dLq, dLv,
+    traits, pattern,
+):  # fmt: skip
+    r"""Every direction through the step at once: the columns of W (2n, r), the frame's and
+    then the sensitivities' (from column ``first_theta``), in place.
+
+    The module docstring's maths: the right-hand sides from the variations of the
+    point values through :math:`q^0` (one per direction, the rows of ``RB``), one
+    solve each with the factors of K, then the momentum's variation with the full
+    point variations. The directions are the innermost loops of the point products.
+    """
+    r = b.shape[0]
+    s1 = Phi.shape[1]
+    s = s1 - 1
+    n = dQ.shape[0]
+    m = W.shape[1]
+    banded = pattern is not None
+    inv_h = 1.0 / h
+    RB[:, :] = 0.0
+    for a in range(n):
+        for j in range(m):
+            RB[j, unknown(0, a, s, n, banded)] = -W[n + a, j]
+    for i in range(r):
+        for a in range(n):
+            for j in range(m):
+                dQ[a, j] = Phi[i, 0] * W[a, j]
+                dV[a, j] = D[i, 0] * inv_h * W[a, j]
+        block_variation(i, dQ, dV, HQQ, HQV, HVV, HFV, TQ, TV, first_theta, dLq, dLv, True,
+                        traits, pattern)  # fmt: skip
+        for nu in range(s):
+            wq = b[i] * h * Phi[i, nu]
+            wv = b[i] * D[i, nu]
+            for a in range(n):
+                u = unknown(nu, a, s, n, banded)
+                for j in range(m):
+                    RB[j, u] -= wq * dLq[a, j] + wv * dLv[a, j]
+    for j in range(m):
+        solve_jacobian(K, piv, s, RB[j], traits, pattern)
+    for i in range(r):
+        for a in range(n):
+            for j in range(m):
+                x = Phi[i, 0] * W[a, j]
+                y = D[i, 0] * W[a, j]
+                for mu in range(1, s1):
+                    z = RB[j, unknown(mu - 1, a, s, n, banded)]
+                    x += Phi[i, mu] * z
+                    y += D[i, mu] * z
+                dQ[a, j] = x
+                dV[a, j] = y * inv_h
+        block_variation(i, dQ, dV, HQQ, HQV, HVV, HFV, TQ, TV, first_theta, dLq, dLv, False,
+                        traits, pattern)  # fmt: skip
+        w = h * b[i]
+        for a in range(n):
+            for j in range(m):
+                W[n + a, j] += w * dLq[a, j]
+    for a in range(n):
+        u = unknown(s - 1, a, s, n, banded)
+        for j in range(m):
+            W[a, j] = RB[j, u]
+
+
+@kernel
 def pull_back(
     lam, grad, h, b, Phi, D, HQQ, HQV, HVV, HFV, TQ, TV, K, piv, W, dQ, dV, uq, uv, acc_q,
     traits, pattern,
@@ -491,15 +608,22 @@ def tangent_loop(
     K = new_jacobian(s, n, traits, pattern)
     piv = np.zeros(s * n, dtype=np.int64)
     R = np.zeros(s * n)
-    rhs = np.zeros(s * n)
     Q = np.zeros(n)
     V = np.zeros(n)
+    rhs = np.zeros(s * n)
+    dq = np.zeros(n)
+    dp = np.zeros(n)
     dQ = np.zeros(n)
     dV = np.zeros(n)
     dLq = np.zeros(n)
     dLv = np.zeros(n)
-    dq = np.zeros(n)
-    dp = np.zeros(n)
+    m_all = n_dir + n_theta
+    Wb = np.zeros((2 * n, m_all))  # the frame and the sensitivities, side by side
+    RB = np.zeros((m_all, s * n))
+    dQb = np.zeros((n, m_all))
+    dVb = np.zeros((n, m_all))
+    dLqb = np.zeros((n, m_all))
+    dLvb = np.zeros((n, m_all))
     chaos = renormalize_every > 0
     growth, sums = start_chaos(T, megno, t0, t_origin, h, chaos)
     banded = pattern is not None
@@ -631,28 +755,37 @@ def tangent_loop(
             for nu in range(s1):
                 for a in range(n):
                     stages_out[k, nu, a] = C[nu, a]
-        for j in range(n_dir):
+        if n_dir + n_theta == 1:
+            # one direction (MEGNO, a largest exponent): vectors, not blocks of width 1
             for a in range(n):
-                dq[a] = T[a, j]
-                dp[a] = T[n + a, j]
+                dq[a] = T[a, 0] if n_dir == 1 else S[a, 0]
+                dp[a] = T[n + a, 0] if n_dir == 1 else S[n + a, 0]
             propagate(
-                dq, dp, -1, h, b, Phi, D, HQQ, HQV, HVV, HFV, TQ, TV, K, piv, rhs, dQ, dV,
-                dLq, dLv, traits, pattern,
+                dq, dp, -1 if n_dir == 1 else 0, h, b, Phi, D, HQQ, HQV, HVV, HFV, TQ,
+                TV, K, piv, rhs, dQ, dV, dLq, dLv, traits, pattern,
             )  # fmt: skip
             for a in range(n):
-                T[a, j] = dq[a]
-                T[n + a, j] = dp[a]
-        for j in range(n_theta):
-            for a in range(n):
-                dq[a] = S[a, j]
-                dp[a] = S[n + a, j]
-            propagate(
-                dq, dp, j, h, b, Phi, D, HQQ, HQV, HVV, HFV, TQ, TV, K, piv, rhs, dQ, dV,
-                dLq, dLv, traits, pattern,
+                if n_dir == 1:
+                    T[a, 0] = dq[a]
+                    T[n + a, 0] = dp[a]
+                else:
+                    S[a, 0] = dq[a]
+                    S[n + a, 0] = dp[a]
+        elif n_dir + n_theta > 1:
+            for a in range(2 * n):
+                for j in range(n_dir):
+                    Wb[a, j] = T[a, j]
+                for j in range(n_theta):
+                    Wb[a, n_dir + j] = S[a, j]
+            propagate_block(
+                Wb, n_dir, h, b, Phi, D, HQQ, HQV, HVV, HFV, TQ, TV, K, piv, RB, dQb, dVb, dLqb,
+                dLvb, traits, pattern,
             )  # fmt: skip
-            for a in range(n):
-                S[a, j] = dq[a]
-                S[n + a, j] = dp[a]
+            for a in range(2 * n):
+                for j in range(n_dir):
+                    T[a, j] = Wb[a, j]
+                for j in range(n_theta):
+                    S[a, j] = Wb[a, n_dir + j]
         compensated_add(pk, p_lost, dpk)
         advance_position(qk, q_lost, C, turns, periodic)
         if chaos:
