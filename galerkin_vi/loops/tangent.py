@@ -46,10 +46,12 @@ factors of the previous step's Jacobian (or, after a slowly contracting step,
 of one at the first iterate, as :func:`.general.general_loop` does), then
 assembles and factorises the Jacobian once at the solution (exact there, as
 the tangent map needs) and propagates the directions; those factors are the
-next step's iteration matrix. With ``renormalize_every`` :math:`m > 0` it
-orthonormalises the frame every :math:`m` steps by modified Gram–Schmidt
-(Benettin et al. 1980), accumulating :math:`\log r_{jj}`, and keeps the MEGNO
-sums of the frame's first column (Cincotta & Simó 2000):
+next step's iteration matrix. Without directions (the adjoint's record, which
+the reverse pass linearises itself) it iterates as the general loop. With
+``renormalize_every`` :math:`m > 0` it orthonormalises the frame every
+:math:`m` steps by modified Gram–Schmidt (Benettin et al. 1980), accumulating
+:math:`\log r_{jj}`, and keeps the MEGNO sums of the frame's first column
+(Cincotta & Simó 2000):
 
 .. math::
 
@@ -661,6 +663,7 @@ def tangent_loop(
         if fresh_for > 0:
             fresh_for -= 1
         refreshed = False
+        current = False  # the point tables (and K, if fresh) are those at the final C
         while its < maxiter:
             its += 1
             if fresh:
@@ -704,6 +707,7 @@ def tangent_loop(
                     scaled = max(scaled, abs(delta) / (1.0 + abs(qk[a]) + abs(updated)))
             if not moved:
                 status = STATUS_OK
+                current = True
                 break
             decision = newton_status(scaled, previous, 1.0, tol, its, maxiter)
             if decision == CONVERGED:
@@ -721,7 +725,8 @@ def tangent_loop(
                 # one at their first iterate (as the general loop does)
                 fresh_for = STALE_RETRY
             previous = scaled
-        if status == STATUS_OK:
+        if status == STATUS_OK and n_dir + n_theta > 0 and not (current and fresh):
+            # the Jacobian at the solution, which the directions need
             linearize(
                 fn, fnp, tk, h, qk, C, prm, b, c, Phi, D, Q, V, F, FV, HQQ, HQV, HVV, HFV,
                 TQ, TV, K, traits, pattern, couplings,
@@ -729,6 +734,12 @@ def tangent_loop(
             factored = factor_jacobian(K, piv, s, traits, pattern)
             if not factored:
                 status = STATUS_SINGULAR
+        elif status == STATUS_OK and not current:
+            # no directions (a record for the adjoint, which linearises itself): the
+            # gradients at the solution only, for the momentum
+            for i in range(r):
+                interpolate(i, inv_h, qk, C, Phi, D, Q, V)
+                point_gradient(fn, tk + c[i] * h, Q, V, prm, F[i], FV[i])
         slot = k // save_every
         if its > iterations_out[slot]:
             iterations_out[slot] = min(its, 255)
