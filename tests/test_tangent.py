@@ -467,3 +467,25 @@ def test_streamed_chunks_carry_the_tangent_and_the_sensitivities():
     np.testing.assert_allclose(sensitivity, whole.sensitivity, rtol=1e-9, atol=1e-10)
     with pytest.raises(ValueError, match="shape"):
         integrator.stream([0.5, 0.3], v0=[0.1, -0.2], chunk_steps=100, tangent=np.ones(3), **run)
+
+
+@pytest.mark.parametrize("kind", ["general", "constrained"])
+def test_ensembles_with_the_tangent_run_in_compiled_blocks_bit_for_bit(kind):
+    if kind == "constrained":
+        system, q0s, v0s = rod(), [[0.6, -0.8], [0.8, -0.6]], [[0.8, 0.6], [0.6, 0.8]]
+        run = dict(h=0.05, n_steps=40, tangent=True, sensitivity=[g])
+    else:
+        system = double_pendulum()
+        q0s, v0s = [[0.5, 0.3], [0.1, -0.2], [1.0, 0.0]], [[0.1, -0.2], [0.0, 0.0], [0.3, 0.1]]
+        run = dict(h=0.01, n_steps=60, tangent=np.eye(4)[:, :2], renormalize_every=5,
+                   sensitivity=[g], save_every=7)  # fmt: skip
+    integrator = gvi.Integrator(system, gvi.Galerkin(2))
+    many = integrator.integrate_many(q0s, v0s, workers=2, **run)
+    for member, q0, v0 in zip(many, q0s, v0s, strict=True):
+        alone = integrator.integrate(q0, v0=v0, **run)
+        np.testing.assert_array_equal(member.q, alone.q)
+        for name in ("tangent", "sensitivity", "log_growth", "megno", "megno_mean"):
+            a, b = getattr(member.variations, name), getattr(alone.variations, name)
+            assert (a is None) == (b is None)
+            if a is not None:
+                np.testing.assert_array_equal(a, b)

@@ -19,13 +19,15 @@ import numpy as np
 
 from ._jit import driver
 from .constrained import constrained_loop
+from .constrained_tangent import constrained_tangent_loop
 from .general import general_loop
 from .linear import linear_loop
 from .point import point_hessian
 from .stage_form import stage_form_loop
+from .tangent import tangent_loop
 from .varying_mass import varying_mass_loop
 
-__all__ = ["legendre_members", "members_loop"]
+__all__ = ["legendre_members", "members_loop", "tangent_members"]
 
 
 @driver
@@ -103,4 +105,60 @@ def legendre_members(fn, t0, q0s, v0s, prms, Lv_out, Lvv_out):
     Fv = np.zeros(size)
     for i in range(q0s.shape[0]):
         point_hessian(fn, t0, q0s[i], v0s[i], prms[i], Lq, Lv_out[i], Lqq, Lqv, Lvv_out[i], Fv)
+    return 0
+
+
+@driver
+def tangent_members(
+    general,
+    constrained,
+    before,
+    fnp,
+    q0s,
+    p0s,
+    v0s,
+    t0,
+    h,
+    n_steps,
+    save_every,
+    prms,
+    after,
+    frames,
+    sensitivities,
+    renormalize_every,
+    t_origin,
+    chaos,
+    stages,
+    t_out,
+    q_out,
+    p_out,
+    turns_out,
+    T_out,
+    S_out,
+    growth_out,
+    megno_out,
+    iterations_out,
+    iteration_totals,
+    results,
+):
+    """:func:`members_loop` for runs with the tangent map: member ``i`` through the tangent
+    loop (``general``) or the constrained one (``constrained``, switches as there) with its
+    own frame ``frames[i]``, sensitivities ``sensitivities[i]`` and chaos sums ``chaos[i]``,
+    into its rows of the outputs; ``stages`` has no rows (no record)."""
+    if general is not None:
+        loop = tangent_loop
+    if constrained is not None:
+        loop = constrained_tangent_loop
+    for i in range(q0s.shape[0]):
+        status, done, saved, worst, increment = loop(
+            *before, fnp, q0s[i], p0s[i], v0s[i], t0, h, n_steps, save_every, prms[i], *after,
+            frames[i], sensitivities[i], renormalize_every, t_origin, chaos[i], stages,
+            t_out[i], q_out[i], p_out[i], turns_out[i], T_out[i], S_out[i], growth_out[i],
+            megno_out[i], iterations_out[i], iteration_totals[i],
+        )  # fmt: skip
+        results[i, 0] = status
+        results[i, 1] = done
+        results[i, 2] = saved
+        results[i, 3] = worst
+        results[i, 4] = increment
     return 0

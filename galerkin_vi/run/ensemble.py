@@ -52,6 +52,9 @@ __all__ = [
 
 #: keyword arguments of a run that the compiled member loop takes (others: one by one)
 COMPILED_RUN = frozenset({"h", "n_steps", "t0", "t_span", "save_every", "on_failure", "progress"})
+#: the run options of the tangent map (:mod:`galerkin_vi.run.tangent`), which a compiled
+#: member loop of their own takes
+VARIATIONS = frozenset({"tangent", "sensitivity", "renormalize_every"})
 #: blocks per thread: members differ in their iteration counts, so blocks balance the load
 BLOCKS_PER_WORKER = 4
 
@@ -170,19 +173,80 @@ def integrate_many(
 ) -> Ensemble:
     """Integrate every member; see :meth:`Integrator.integrate_many`."""
     q, name, x = member_starts(q0s, v0s, p0s, integrator.system.n)
-    m = q.shape[0]
     run.setdefault("progress", False)
     workers = workers or os.cpu_count() or 1
     if executor is not None:
         return _on_executor(executor, integrator, q, name, x, params, run, workers)
-    if _compiled(integrator, run):
+    if VARIATIONS & set(run):
+        if _compiled_with_variations(integrator, run):
+            return _members_with_variations(integrator, q, name, x, params, run, workers)
+    elif _compiled(integrator, run):
         return _compiled_members(integrator, q, name, x, params, run, workers)
-    members = member_parameters(params, m)
-    # ThreadPoolExecutor: the compiled loops release the GIL
+    # one by one on threads: the compiled loops release the GIL
+    return _one_by_one(integrator, q, name, x, params, run, workers)
+
+
+def _compiled_with_variations(integrator, run: dict) -> bool:
+    """Whether runs with the tangent map can go through the compiled member loop."""
+    if integrator.backend != "numba" or integrator.system.contacts:
+        return False
+    if not (COMPILED_RUN | VARIATIONS).issuperset(run):
+        return False
+    plan = run_plan(
+        run.get("h"), run.get("n_steps"), run.get("t_span"), run.get("t0", 0.0),
+        run.get("save_every", 1),
+    )  # fmt: skip
+    return single_call(plan.n_steps, plan.save_every)
+
+
+def _members_with_variations(integrator, q, name, x, params, run, workers) -> Ensemble:
+    """The members with the tangent map in blocks of one compiled call each
+    (:func:`galerkin_vi.run.tangent.members_with_variations`); a member that fails or
+    grows explosively runs again one by one, which reports it."""
+    from .tangent import initial_sensitivity, members_with_variations, variation_request
+
+    check_failure_mode(run.get("on_failure", "warn"))
+    system = integrator.system
+    request = variation_request(
+        system, run.get("tangent"), run.get("sensitivity"), run.get("renormalize_every", 0)
+    )
+    if request is None:
+        return _one_by_one(integrator, q, name, x, params, run, workers)
+    plan = run_plan(
+        run.get("h"), run.get("n_steps"), run.get("t_span"), run.get("t0", 0.0),
+        run.get("save_every", 1),
+    )  # fmt: skip
+    spec = integrator.tangent_run_spec
+    m = q.shape[0]
+    prms = parameter_matrix(system, params, m)
+    q0s, p0s, v0s = initial_states(spec, q, name, x, plan.t0, prms)
+    starts = None
+    if name == "v0" and request.parameters:
+        starts = np.stack([
+            initial_sensitivity(system, request.parameters, plan.t0, q0s[i], v0s[i], prms[i])
+            for i in range(m)
+        ])  # fmt: skip
+    members = members_with_variations(
+        spec, request, q0s, p0s, v0s, plan.t0, plan.h, plan.n_steps, plan.save_every, prms,
+        starts, workers,
+    )  # fmt: skip
+    again = member_parameters(params, m)
+    trajectories = []
+    for i, (traj, result) in enumerate(members):
+        grown = not within_growth_bound(traj.q[:1], traj.p[:1], traj.q[-1:], traj.p[-1:])
+        if result.status != 0 or grown:
+            traj = integrator.integrate(q[i], **{name: x[i]}, params=again[i], **run)
+        trajectories.append(traj)
+    return Ensemble.of(trajectories)
+
+
+def _one_by_one(integrator, q, name, x, params, run, workers) -> Ensemble:
+    """Every member by its own :meth:`Integrator.integrate`, on threads."""
+    members = member_parameters(params, q.shape[0])
     with ThreadPoolExecutor(max_workers=workers) as pool:
         futures = [
             pool.submit(integrator.integrate, q[i], **{name: x[i]}, params=members[i], **run)
-            for i in range(m)
+            for i in range(q.shape[0])
         ]
         return Ensemble.of([f.result() for f in futures])
 

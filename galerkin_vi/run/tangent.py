@@ -31,7 +31,12 @@ from .outputs import RunOutputs
 from .spec import RunSpec, Segment
 from .trajectory import Trajectory
 
-__all__ = ["VariationRequest", "Variations", "variation_request"]
+__all__ = [
+    "VariationRequest",
+    "Variations",
+    "members_with_variations",
+    "variation_request",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -377,3 +382,80 @@ def constrained_tangent_spec(spec: RunSpec) -> RunSpec:
             "supported: the derivative of the constraint rate dg/dt in q is not generated"
         )
     return spec
+
+
+def members_with_variations(
+    spec: RunSpec, request: VariationRequest, q0s, p0s, v0s, t0: float, h: float,
+    n_steps: int, save_every: int, prms, starts=None, workers: int = 1,
+) -> list[tuple[Trajectory, LoopResult]]:  # fmt: skip
+    """Every member's run with the tangent map, blocks of members in one compiled call
+    each (:func:`galerkin_vi.loops.members.tangent_members`), blocks on threads.
+
+    ``starts`` (m, 2n, P): the members' initial sensitivities (None: zero). One call
+    per block: runs of at most one chunk (:func:`galerkin_vi.run.chunks.single_call`).
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    from ..loops.members import tangent_members
+    from ..loops.readiness import ensure_loops
+
+    ensure_loops()
+    system = spec.system
+    m, n = q0s.shape
+    runner = TangentRunner(spec, request, t0)  # the start frame, checks, addresses
+    r, P = runner.T.shape[1], runner.S.shape[1]  # noqa: N806
+    frames = np.repeat(runner.T[None], m, axis=0)
+    sensitivities = np.zeros((m, 2 * n, P)) if starts is None else np.array(starts, dtype=float)
+    chaos = np.zeros((m, r + 2))
+    out = RunOutputs.allocate(n_steps, save_every, n, spec.periodic)
+    rows = out.t.shape[0]
+    chaos_rows = rows if request.renormalize_every else 0
+    t_out, q_out, p_out = np.empty((m, rows)), np.empty((m, rows, n)), np.empty((m, rows, n))
+    turns_out = np.zeros((m, rows if spec.periodic else 1, n))
+    T_out, S_out = np.zeros((m, rows, 2 * n, r)), np.zeros((m, rows, 2 * n, P))  # noqa: N806
+    growth_out, megno_out = np.zeros((m, chaos_rows, r)), np.zeros((m, chaos_rows, 2))
+    iterations = np.zeros((m, out.iterations.shape[0]), dtype=np.uint8)
+    totals, results = np.zeros((m, 1), dtype=np.int64), np.zeros((m, 5))
+    loop, before, after = tangent_loop_parts(spec)
+    constrained = spec.path == "constrained"
+    switches = (None, True) if constrained else (True, None)
+    stages = np.zeros((0, spec.method.tables.d.shape[0], n))
+
+    def block(rows_of):
+        tangent_members(
+            *switches, before, runner.fnp, q0s[rows_of], p0s[rows_of], v0s[rows_of], t0, h,
+            n_steps, save_every, prms[rows_of], after, frames[rows_of], sensitivities[rows_of],
+            request.renormalize_every, t0, chaos[rows_of], stages, t_out[rows_of],
+            q_out[rows_of], p_out[rows_of], turns_out[rows_of], T_out[rows_of],
+            S_out[rows_of], growth_out[rows_of], megno_out[rows_of], iterations[rows_of],
+            totals[rows_of], results[rows_of],
+        )  # fmt: skip
+
+    size = max(1, -(-m // (4 * max(1, workers))))
+    blocks = [slice(i, min(i + size, m)) for i in range(0, m, size)]
+    if workers > 1 and len(blocks) > 1:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            list(pool.map(block, blocks))
+    else:
+        for rows_of in blocks:
+            block(rows_of)
+    members = []
+    for i in range(m):
+        result = LoopResult(*(int(v) for v in results[i, :3]), *results[i, 3:])
+        outputs = RunOutputs(t_out[i], q_out[i], p_out[i], turns_out[i], iterations[i],
+                             totals[i], spec.periodic)  # fmt: skip
+        traj = outputs.trajectory(
+            result.status, result.steps, result.saved, result.worst_residual, save_every,
+            system, prms[i], spec.order,
+        )  # fmt: skip
+        saved = result.saved
+        variations = Variations(
+            tangent=T_out[i, :saved] if request.keep_tangent else None,
+            sensitivity=S_out[i, :saved] if request.parameters else None,
+            parameters=request.parameters,
+            log_growth=growth_out[i, :saved] if chaos_rows else None,
+            megno=megno_out[i, :saved, 0] if chaos_rows else None,
+            megno_mean=megno_out[i, :saved, 1] if chaos_rows else None,
+        )
+        members.append((replace(traj, variations=variations), result))
+    return members

@@ -46,10 +46,8 @@ or on any executor with ``map`` (a process pool, Dask's
 from __future__ import annotations
 
 import numbers
-import os
 import pickle
-from collections.abc import Callable, Mapping
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -531,7 +529,7 @@ def _chaos_map(indicator, integrator, q0s, v0s, p0s, h, n_steps, params, executo
             raise TypeError(f"executor must have a map method, got {type(executor).__name__}")
         results = list(executor.map(run_member, tasks))
     else:
-        results = _on_threads(run_member, tasks, workers)
+        results = _in_blocks(indicator, integrator, q, start, x, params, workers, options)
     return ChaosMap(
         values=np.array([value for value, _, _ in results]),
         success=np.array([code >= 0 for _, code, _ in results], dtype=bool),
@@ -540,9 +538,30 @@ def _chaos_map(indicator, integrator, q0s, v0s, p0s, h, n_steps, params, executo
     )
 
 
-def _on_threads(function: Callable, tasks: list, workers: int | None) -> list:
-    workers = workers or os.cpu_count() or 1
-    if workers == 1 or len(tasks) == 1:
-        return [function(task) for task in tasks]
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        return list(pool.map(function, tasks))
+def _in_blocks(indicator, integrator, q, start, x, params, workers, options) -> list:
+    """Every member's (value, status, message) through :meth:`Integrator.integrate_many`:
+    blocks of members in one compiled call each (runs of one chunk), on threads."""
+    n = integrator.system.n
+    options = dict(options)
+    seed = options.pop("seed", DEFAULT_SEED)
+    if indicator == "lyapunov":
+        frame = start_frame(n, options.pop("directions", None), seed)
+        every = _positive_int(options.pop("renormalize_every", 10), "renormalize_every")
+        options["save_every"] = _default_save_every(options["n_steps"], options.get("save_every"))
+        ensemble = integrator.integrate_many(
+            q, **{start + "s": x}, params=params, workers=workers, tangent=frame,
+            renormalize_every=every, **options,
+        )  # fmt: skip
+        what = "Lyapunov spectrum"
+        return [
+            (spectrum_of(traj).exponents, int(traj.status), _message(what, traj))
+            for traj in ensemble.trajectories
+        ]
+    direction = options.pop("direction", None)
+    delta = default_deviation(n, seed) if direction is None else _unit(direction, n)
+    ensemble = integrator.integrate_many(
+        q, **{start + "s": x}, params=params, workers=workers, tangent=delta[:, None],
+        renormalize_every=1, **options,
+    )  # fmt: skip
+    return [(np.array(float(traj.variations.megno_mean[-1])), int(traj.status),
+             _message("MEGNO", traj)) for traj in ensemble.trajectories]  # fmt: skip

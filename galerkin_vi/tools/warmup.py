@@ -180,6 +180,8 @@ def _warm_up_one(run: tuple) -> float:
 
         integrator = Integrator(system, method, specialize=specialize)
         integrator.integrate(q0, v0=v0, h=0.01, n_steps=2, tangent=True, on_failure="raise")
+        # the member loop of ensembles with the tangent map
+        integrator.integrate_many([q0, q0], [v0, v0], h=0.01, n_steps=2, tangent=True, workers=1)
         if not system.m:
             warm_up_adjoint(integrator, q0, v0)
     else:
