@@ -132,6 +132,44 @@ def test_users_numba_code_compiles_with_numbas_originals_after_a_run():
     }
 
 
+def test_users_numba_code_compiles_with_numbas_originals_after_tangent_runs():
+    # the tangent loops, their member loop, the adjoint's reverse pass and the generated
+    # parameter derivatives load or compile as the time loops do: nothing stays installed
+    result = _python(
+        """
+        import json
+        import numpy as np
+        import sympy as sp
+        from numba import njit
+        before = originals()
+        import galerkin_vi as gvi
+
+        q, v, k = sp.symbols("q v k")
+        system = gvi.LagrangianSystem(v**2 / 2 + k * sp.cos(q), [q], [v], params={k: 1.0})
+        integrator = gvi.Integrator(system, gvi.Galerkin(2))
+        traj = integrator.integrate([1.0], [0.0], h=0.1, n_steps=5, tangent=True,
+                                    sensitivity=[k])
+        many = integrator.integrate_many([[1.0], [0.5]], [[0.0], [0.1]], h=0.1, n_steps=5,
+                                         tangent=True, workers=1)
+        grad = gvi.gradient(integrator, q**2, [1.0], [0.0], h=0.1, n_steps=5)
+        assert traj.success and grad.success and len(many) == 2
+
+        @njit
+        def user_sum(a):
+            total = 0.0
+            for value in a:
+                total += value * value
+            return total
+
+        value = user_sum(np.arange(4.0))
+        same_now = same(before, originals())
+        same_now["value"] = value == 14.0
+        print(json.dumps(same_now))
+        """
+    )
+    assert result == dict.fromkeys(result, True) and len(result) == 6
+
+
 def test_compiling_installs_its_replacements_only_inside_and_restores_them():
     from numba.core import inline_closurecall, ir, postproc
 

@@ -52,7 +52,7 @@ from numpy.typing import NDArray
 
 from ..run.spec import Segment
 from ..run.start import initial_state
-from ..run.tangent import TangentRunner, VariationRequest, Variations
+from ..run.tangent import TangentRunner, VariationRequest, Variations, legendre_derivatives
 
 __all__ = [
     "check_contact_variations",
@@ -92,13 +92,11 @@ def _gap_rates(system, functions):
 
 
 def _point_blocks(system, t, q, v, prm):
-    """(L_q + f, L_v, L_qv, L_vv) at one state."""
+    """(L_q + f, dL_v/dq, L_vv) at one state."""
     n = system.n
-    flat = np.asarray(system.evaluate("hessian", t, q, v, prm), dtype=float).ravel()
-    force, lv = flat[:n], flat[n : 2 * n]
-    lqv = flat[2 * n + n * n : 2 * n + 2 * n * n].reshape(n, n)
-    lvv = flat[2 * n + 2 * n * n : 2 * n + 3 * n * n].reshape(n, n)
-    return force, lv, lqv, lvv
+    force = np.asarray(system.evaluate("gradient", t, q, v, prm), dtype=float).ravel()[:n]
+    legendre = legendre_derivatives(system, (), t, q, v, prm)
+    return force, legendre.dq, legendre.dv
 
 
 def impact_jacobian(system, functions, impact, q, p_minus, p_plus, prm):
@@ -113,11 +111,11 @@ def impact_jacobian(system, functions, impact, q, p_minus, p_plus, prm):
     hess = functions.at(functions.hessians, t, q, np.zeros(n), prm)[j]
     e = system.contacts[j].restitution
     lam = impact.normal_impulse
-    force_m, _, lqv_m, lvv_m = _point_blocks(system, t, q, v_minus, prm)
-    force_p, _, lqv_p, lvv_p = _point_blocks(system, t, q, v_plus, prm)
+    force_m, lvq_m, lvv_m = _point_blocks(system, t, q, v_minus, prm)
+    force_p, lvq_p, lvv_p = _point_blocks(system, t, q, v_plus, prm)
     # d v^- / d(q, p) and the right-hand side of the differentiated law, columns (q, p)
-    dv_minus = np.linalg.solve(lvv_m, np.hstack([-lqv_m.T, np.eye(n)]))
-    top = np.hstack([lam * hess - lqv_p.T, np.eye(n)])
+    dv_minus = np.linalg.solve(lvv_m, np.hstack([-lvq_m, np.eye(n)]))
+    top = np.hstack([lam * hess - lvq_p, np.eye(n)])
     bottom = -e * (g @ dv_minus) - np.r_[hess @ (v_plus + e * v_minus), np.zeros(n)]
     matrix = np.block([[lvv_p, -g[:, None]], [g[None, :], np.zeros((1, 1))]])
     solution = np.linalg.solve(matrix, np.vstack([top, bottom[None, :]]))

@@ -21,19 +21,23 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 
 from ..loops.abi import LoopResult
+from ..numeric import FlatEvaluator
 from .outputs import RunOutputs
 from .spec import RunSpec, Segment
 from .trajectory import Trajectory
 
 __all__ = [
+    "LegendreDerivatives",
     "VariationRequest",
     "Variations",
+    "legendre_derivatives",
     "members_with_variations",
     "variation_request",
 ]
@@ -161,19 +165,40 @@ def _parameters(system, sensitivity) -> tuple[tuple, tuple[int, ...]]:
     return tuple(chosen), tuple(params.index(s) for s in chosen)
 
 
+class LegendreDerivatives(NamedTuple):
+    r""":math:`p = L_v(t, q, v; \theta)` and its derivatives at one state."""
+
+    p: NDArray[np.float64]
+    dq: NDArray[np.float64]  # (n, n): d p / d q
+    dv: NDArray[np.float64]  # (n, n): d p / d v
+    dtheta: NDArray[np.float64]  # (n, P): d p / d theta
+
+
+def legendre_derivatives(system, parameters: tuple, t, q, v, prm) -> LegendreDerivatives:
+    """The Legendre transform and its derivatives in q, v and ``parameters`` at one state
+    (generated once per system and parameter list, kept with the system)."""
+    n, P = system.n, len(parameters)  # noqa: N806
+
+    def build():
+        lv = sp.Matrix(system.pieces.Lv)
+        blocks = [lv, lv.jacobian(list(system.q)), lv.jacobian(list(system.v))]
+        if parameters:
+            blocks.append(lv.jacobian(list(parameters)))
+        return FlatEvaluator.from_blocks(blocks, system.arguments)
+
+    evaluator = system.derived.get(("tangent", "legendre derivatives", parameters), build)
+    values = np.asarray(evaluator(t, *q, *v, *prm), dtype=float).ravel()
+    p, dq, dv, dtheta = np.split(values, np.cumsum([n, n * n, n * n]))
+    return LegendreDerivatives(p, dq.reshape(n, n), dv.reshape(n, n), dtheta.reshape(n, P))
+
+
 def initial_sensitivity(system, parameters: tuple, t0: float, q, v, prm) -> NDArray[np.float64]:
     r""":math:`\partial(q_0, p_0)/\partial\theta` of a start given by its velocity:
     :math:`p_0 = L_v(t_0, q_0, v_0; \theta)`, so the momenta's rows are
     :math:`\partial L_v/\partial\theta` (the positions' are zero)."""
     n = system.n
-
-    def build():
-        lv = sp.Matrix(system.pieces.Lv)
-        return sp.lambdify(system.arguments, lv.jacobian(list(parameters)), "numpy")
-
-    jacobian = system.derived.get(("tangent", "legendre in parameters", parameters), build)
     out = np.zeros((2 * n, len(parameters)))
-    out[n:] = np.asarray(jacobian(t0, *q, *v, *prm), dtype=float).reshape(n, len(parameters))
+    out[n:] = legendre_derivatives(system, parameters, t0, q, v, prm).dtheta
     return out
 
 

@@ -49,7 +49,12 @@ from numpy.typing import NDArray
 from ..run.spec import Segment
 from ..run.start import initial_state
 from ..run.status import RunStatus, SolverResult, loop_status
-from ..run.tangent import parameter_addresses, recorded_steps, tangent_couplings
+from ..run.tangent import (
+    legendre_derivatives,
+    parameter_addresses,
+    recorded_steps,
+    tangent_couplings,
+)
 from ..run.trajectory import Trajectory
 
 __all__ = ["Gradient", "Loss", "gradient", "warm_up_adjoint"]
@@ -329,10 +334,10 @@ def _result(system, terms, value, lam, grad, thetas, q, v, p0, t0, prm, wrt, sta
     g_q0, g_v0, g_p0 = lam_q, None, None
     if p0 is None:
         # p0 = L_v(t0, q0, v0; theta): its derivatives carry lambda_p back
-        dq, dv, dtheta = terms.legendre_jacobians(t0, q, v, prm)
-        g_q0 = lam_q + dq.T @ lam_p
-        g_v0 = dv.T @ lam_p
-        grad = grad + dtheta.T @ lam_p
+        legendre = legendre_derivatives(system, thetas, t0, q, v, prm)
+        g_q0 = lam_q + legendre.dq.T @ lam_p
+        g_v0 = legendre.dv.T @ lam_p
+        grad = grad + legendre.dtheta.T @ lam_p
     else:
         g_p0 = lam_p
     t_rows = np.array([s.t0 for s in starts] + [traj_end.t[-1]])
@@ -380,13 +385,6 @@ class LossTerms:
         self.terminal = self._pieces(loss.terminal, state, thetas)
         self.running = self._pieces(loss.running, state, thetas)
         self.thetas = thetas
-        lv = sp.Matrix(system.pieces.Lv)
-        self._legendre = sp.lambdify(
-            self.arguments[: 1 + n] + (*system.v, *system.params),
-            [lv.jacobian(list(system.q)), lv.jacobian(list(system.v)),
-             lv.jacobian(list(thetas)) if thetas else sp.zeros(n, 0)],
-            "numpy",
-        )  # fmt: skip
 
     def _pieces(self, expr, state, thetas):
         if expr is None:
@@ -437,17 +435,6 @@ class LossTerms:
         if table is None:
             return np.zeros(len(self.thetas))
         return table[:, 1 + 2 * self.n :].sum(axis=0)
-
-    def legendre_jacobians(self, t0, q, v, prm):
-        """:math:`\\partial L_v/\\partial q`, :math:`\\partial L_v/\\partial v`,
-        :math:`\\partial L_v/\\partial\\theta` at the initial state."""
-        dq, dv, dtheta = self._legendre(t0, *q, *v, *prm)
-        n = self.n
-        return (
-            np.asarray(dq, dtype=float).reshape(n, n),
-            np.asarray(dv, dtype=float).reshape(n, n),
-            np.asarray(dtheta, dtype=float).reshape(n, len(self.thetas)),
-        )
 
 
 def warm_up_adjoint(integrator, q0, v0) -> None:

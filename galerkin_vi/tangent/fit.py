@@ -57,8 +57,8 @@ from scipy.optimize import least_squares
 
 from ..errors import ConvergenceError
 from ..integrator import Integrator
-from ..numeric import FlatEvaluator
 from ..run.status import SolverResult
+from ..run.tangent import legendre_derivatives
 from ..run.trajectory import Trajectory
 from .estimate import estimate_parameters
 from .observations import FitStatus, check_observations, parameter_symbols
@@ -195,11 +195,7 @@ class InitialState:
         self.n, self.n_params = system.n, len(symbols)
         self._index = [system.params.index(s) for s in symbols]
         self._prm = system.parameter_vector()
-        if kind == "velocity":
-            lv = sp.Matrix([sp.diff(system.L, v) for v in system.v])
-            blocks = [lv, lv.jacobian(list(symbols)), lv.jacobian(system.q),
-                      lv.jacobian(system.v)]  # fmt: skip
-            self._legendre = FlatEvaluator.from_blocks(blocks, system.arguments)
+        self._system, self._symbols = system, tuple(symbols)
 
     @property
     def size(self) -> int:
@@ -228,14 +224,15 @@ class InitialState:
             if self.fitted:
                 D[:, P:] = np.eye(2 * n)
             return q0, w0, D
-        values = self._legendre(self.t0, *q0, *w0, *self.parameters(theta))
-        p0, d_theta, d_q, d_v = np.split(values, np.cumsum([n, n * P, n * n]))
-        D[n:, :P] = d_theta.reshape(n, P)
+        legendre = legendre_derivatives(
+            self._system, self._symbols, self.t0, q0, w0, self.parameters(theta)
+        )
+        D[n:, :P] = legendre.dtheta
         if self.fitted:
             D[:n, P : P + n] = np.eye(n)
-            D[n:, P : P + n] = d_q.reshape(n, n)
-            D[n:, P + n :] = d_v.reshape(n, n)
-        return q0, p0, D
+            D[n:, P : P + n] = legendre.dq
+            D[n:, P + n :] = legendre.dv
+        return q0, legendre.p, D
 
 
 class RunFailed(Exception):
