@@ -215,6 +215,19 @@ def parameter_addresses(system, parameters: tuple) -> NDArray[np.int64]:
     return system.derived.get(("parameter_points", parameters), build)
 
 
+def saved_variations(request, saved: int, T_out, S_out, growth_out, megno_out) -> Variations:  # noqa: N803
+    """The :class:`Variations` of the first ``saved`` rows the tangent loop wrote."""
+    chaos = growth_out.shape[0] > 0
+    return Variations(
+        tangent=T_out[:saved] if request.keep_tangent else None,
+        sensitivity=S_out[:saved] if request.parameters else None,
+        parameters=request.parameters,
+        log_growth=growth_out[:saved] if chaos else None,
+        megno=megno_out[:saved, 0] if chaos else None,
+        megno_mean=megno_out[:saved, 1] if chaos else None,
+    )
+
+
 def tangent_loop_parts(spec: RunSpec) -> tuple:
     """``(loop, before, after)`` of the tangent loop for ``spec``'s system (as
     :meth:`RunSpec.loop_parts`): the constrained one, or the general one."""
@@ -297,14 +310,7 @@ class TangentRunner:
             segment.save_every, system, segment.prm, spec.order,
         )  # fmt: skip
         saved = result.saved
-        variations = Variations(
-            tangent=T_out[:saved] if request.keep_tangent else None,
-            sensitivity=S_out[:saved] if request.parameters else None,
-            parameters=request.parameters,
-            log_growth=growth_out[:saved] if chaos_rows else None,
-            megno=megno_out[:saved, 0] if chaos_rows else None,
-            megno_mean=megno_out[:saved, 1] if chaos_rows else None,
-        )
+        variations = saved_variations(request, saved, T_out, S_out, growth_out, megno_out)
         return replace(traj, variations=variations), result
 
 
@@ -474,13 +480,8 @@ def members_with_variations(
             system, prms[i], spec.order,
         )  # fmt: skip
         saved = result.saved
-        variations = Variations(
-            tangent=T_out[i, :saved] if request.keep_tangent else None,
-            sensitivity=S_out[i, :saved] if request.parameters else None,
-            parameters=request.parameters,
-            log_growth=growth_out[i, :saved] if chaos_rows else None,
-            megno=megno_out[i, :saved, 0] if chaos_rows else None,
-            megno_mean=megno_out[i, :saved, 1] if chaos_rows else None,
+        variations = saved_variations(
+            request, saved, T_out[i], S_out[i], growth_out[i], megno_out[i]
         )
         members.append((replace(traj, variations=variations), result))
     return members
