@@ -45,7 +45,6 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
 
 from ..numeric import FlatEvaluator
 from ..run.status import SolverResult
@@ -234,6 +233,8 @@ def _solve_linear(residual: DELResidual, p: int) -> tuple[NDArray, FitStatus]:
 
 def _solve_nonlinear(residual: DELResidual, start: NDArray) -> tuple[NDArray, FitStatus]:
     """Gauss–Newton (trust region) on the residuals, exact Jacobian."""
+    from scipy.optimize import least_squares  # scipy.optimize: loaded when fitting
+
     sol = least_squares(
         residual.residual, start, jac=residual.jacobian, method="trf", x_scale="jac",
         ftol=1e-12, xtol=1e-12, gtol=1e-12,

@@ -53,7 +53,6 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
 
 from ..errors import ConvergenceError
 from ..integrator import Integrator
@@ -395,6 +394,8 @@ def fit_parameters(
         model.evaluate(x0)
     except RunFailed as exc:
         return _failed(model, x0, q, exc)
+    from scipy.optimize import least_squares  # scipy.optimize: loaded when fitting
+
     sol = least_squares(residual, x0, jac=jacobian, bounds=(lower, upper), method="trf",
                         **_least_squares_options(options))  # fmt: skip
     return _result(model, sol, q, sqrt_w, used, absolute_weights, on_grid)
