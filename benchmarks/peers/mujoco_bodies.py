@@ -81,7 +81,9 @@ class FreeBodyRun:
         CPU seconds of the ``mj_step`` calls.
     steps : int
     success, status, message
-        ``status`` -1 when the state became non-finite (MuJoCo's own warnings are not read).
+        ``status`` -1 when MuJoCo flagged the simulation unstable (``mjWARN_BADQACC``; it then
+        resets the state, so the run stops and keeps the rows saved before) or it turned
+        non-finite.
     """
 
     t: np.ndarray
@@ -162,10 +164,11 @@ def run_free_body(
         mujoco.mj_step(model, data, nstep=int(save_every))
         cpu += time.process_time() - start
         quats[row], omegas[row] = data.qpos[3:7], data.qvel[3:6]
-        if not np.isfinite(omegas[row]).all():
-            return FreeBodyRun(np.arange(row + 1) * h * save_every, quats[: row + 1],
-                               omegas[: row + 1], cpu, row * int(save_every), False, -1,
-                               f"non-finite state by step {row * int(save_every)}")
+        if _unstable(data) or not np.isfinite(omegas[row]).all():
+            # the rows before this save are MuJoCo's last trustworthy ones
+            return FreeBodyRun(np.arange(row) * h * save_every, quats[:row], omegas[:row], cpu,
+                               row * int(save_every), False, -1,
+                               f"unstable (bad qacc) by step {row * int(save_every)}")
     return FreeBodyRun(np.arange(rows) * h * save_every, quats, omegas, cpu,
                        (rows - 1) * int(save_every), True, 0, "finished")
 
@@ -272,6 +275,11 @@ def chain_initial_poses(spec: ChainSpec) -> dict[str, np.ndarray]:
     }
 
 
+def _unstable(data: mujoco.MjData) -> bool:
+    """Whether MuJoCo flagged a bad acceleration (it then resets the state to qpos0 and goes on)."""
+    return data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)].number > 0
+
+
 def _energy(model: mujoco.MjModel, data: mujoco.MjData) -> float:
     """Potential plus kinetic energy now (the energy flag on for one ``mj_forward``)."""
     model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
@@ -295,7 +303,7 @@ class ChainRun:
         CPU seconds of the ``mj_step`` calls.
     steps : int
     success, status, message
-        ``status`` -1 when the state became non-finite.
+        ``status`` -1 when MuJoCo flagged the simulation unstable (see :class:`FreeBodyRun`).
     """
 
     t: np.ndarray
@@ -333,9 +341,9 @@ def run_chain(spec: ChainSpec, h: float, n_steps: int, integrator: str = "RK4",
         mujoco.mj_step(model, data, nstep=int(save_every))
         cpu += time.process_time() - start
         energy[row], qpos[row] = _energy(model, data), data.qpos
-        if not np.isfinite(energy[row]):
-            return ChainRun(np.arange(row + 1) * h * save_every, energy[: row + 1],
-                            qpos[: row + 1], cpu, row * int(save_every), False, -1,
-                            f"non-finite state by step {row * int(save_every)}")
+        if _unstable(data) or not np.isfinite(energy[row]):
+            return ChainRun(np.arange(row) * h * save_every, energy[:row], qpos[:row], cpu,
+                            row * int(save_every), False, -1,
+                            f"unstable (bad qacc) by step {row * int(save_every)}")
     return ChainRun(np.arange(rows) * h * save_every, energy, qpos, cpu,
                     (rows - 1) * int(save_every), True, 0, "finished")
