@@ -1,0 +1,26 @@
+"""Rigid bodies and multibody systems in 3-D, built into a :class:`~galerkin_vi.LagrangianSystem`.
+
+The stage above :mod:`galerkin_vi.model`: bodies (:mod:`.body`) with embedded
+rotations, joints (:mod:`.joints`), loads (:mod:`.loads`), contact shapes
+(:mod:`.shapes`), their assembly (:mod:`.system`) and the motion of each body
+read back from a trajectory (:mod:`.motion`).
+"""
+
+from . import joints
+from .body import RigidBody
+from .loads import BodyForce
+from .motion import BodyMotion
+from .shapes import BodyContact, BodyPoint, Plane, Sphere
+from .system import Multibody
+
+__all__ = [
+    "BodyContact",
+    "BodyForce",
+    "BodyMotion",
+    "BodyPoint",
+    "Multibody",
+    "Plane",
+    "RigidBody",
+    "Sphere",
+    "joints",
+]
