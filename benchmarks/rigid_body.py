@@ -136,7 +136,7 @@ def galerkin_vi_free_body(rotation: str, s: int, h: float, n_steps: int,
 
     The body starts at the origin at rest in translation, :math:`R_0 = I`, body angular
     velocity :data:`OMEGA0`; the returned angular velocity is the body frame's
-    (``mb.pose(traj, "b").angular_velocity``). CPU time excludes a one-step warm-up run that
+    (``mb.motion(traj, "b").angular_velocity``). CPU time excludes a one-step warm-up run that
     compiles the system's point functions.
     """
     body = gvi.RigidBody("b", mass=1.0, inertia=list(INERTIA), rotation=rotation)
@@ -149,7 +149,7 @@ def galerkin_vi_free_body(rotation: str, s: int, h: float, n_steps: int,
     start = time.process_time()
     traj = integrator.integrate(q0, v0=v0, h=h, n_steps=n_steps, save_every=save_every)
     cpu = time.process_time() - start
-    omega = np.asarray(mb.pose(traj, "b").angular_velocity)
+    omega = np.asarray(mb.motion(traj, "b").angular_velocity)
     row = Row("galerkin_vi", f"galerkin_vi {rotation} s={s}", h, traj.n_steps, cpu,
               traj.mean_newton_iterations, message="" if traj.success else traj.message)
     return row, omega
