@@ -3,10 +3,12 @@
 The stage above :mod:`galerkin_vi.model`: bodies (:mod:`.body`) with embedded
 rotations, joints (:mod:`.joints`), loads (:mod:`.loads`), contact shapes
 (:mod:`.shapes`), their assembly (:mod:`.system`) and the motion of each body
-read back from a trajectory (:mod:`.motion`).
+read back from a trajectory (:mod:`.motion`), and the embedding of
+:mod:`sympy.physics.mechanics` bodies oriented by quaternions or direction
+cosines (:mod:`.mechanics`).
 """
 
-from . import joints
+from . import joints, mechanics
 from .body import RigidBody
 from .loads import BodyForce
 from .motion import BodyMotion
@@ -23,4 +25,5 @@ __all__ = [
     "RigidBody",
     "Sphere",
     "joints",
+    "mechanics",
 ]

@@ -521,15 +521,18 @@ def _rank_on_rotations(edge: _Edge, constraints: list[sp.Expr]) -> int | None:
     """The rank of ``constraints`` on random rotations if they vanish there, else ``None``."""
     e = edge.coordinates
     time = e[0].args[0]
-    g = sp.Matrix(constraints).subs(time, 0)
+    g = sp.Matrix(constraints)
     jac = g.jacobian(e)
     rng = np.random.default_rng(29)
     ranks = []
     for _ in range(3):
         values = dict(_random_rotation_values(edge, rng))
-        if np.abs(np.array(g.xreplace(values), dtype=float)).max() > 1e-9:
+        # coordinates first: substituting the time first would turn r(t) into r(0)
+        residual = np.array(g.xreplace(values).subs(time, 0), dtype=float)
+        if np.abs(residual).max() > 1e-9:
             return None
-        ranks.append(np.linalg.matrix_rank(np.array(jac.xreplace(values), dtype=float), 1e-9))
+        jac_value = np.array(jac.xreplace(values).subs(time, 0), dtype=float)
+        ranks.append(np.linalg.matrix_rank(jac_value, 1e-9))
     return int(min(ranks))
 
 
