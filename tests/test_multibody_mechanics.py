@@ -207,16 +207,31 @@ def test_euler_angles_convert_as_before():
     assert system.L == to_plain_symbols(L, a).L
 
 
-def test_orientation_by_an_unrecognised_polynomial_is_refused():
-    r = me.dynamicsymbols("r1:7")
+def body_on(orientation, r):
     N, B = me.ReferenceFrame("N"), me.ReferenceFrame("B")
-    B.orient_explicit(N, sp.Matrix([[r[0], r[1], 0], [r[2], r[3], 0], [r[4], r[5], 1]]))
+    B.orient_explicit(N, orientation)
     origin = me.Point("O")
     origin.set_vel(N, 0)
     body = me.RigidBody("b", origin, B, 1, (me.inertia(B, *MOMENTS), origin))
-    lm = me.LagrangesMethod(me.Lagrangian(N, body), r, bodies=[body], frame=N)
+    return me.LagrangesMethod(me.Lagrangian(N, body), r, bodies=[body], frame=N)
+
+
+def test_orientation_by_an_unrecognised_homogeneous_polynomial_is_refused():
+    r = me.dynamicsymbols("r1:6")
+    D = sp.Matrix([[r[0], r[1], 0], [r[2], r[3], 0], [0, 0, r[4]]])
     with pytest.raises(ValueError, match="neither a quaternion"):
-        gvi.LagrangianSystem.from_lagranges_method(lm)
+        gvi.LagrangianSystem.from_lagranges_method(body_on(D, r))
+
+
+def test_linearised_rotation_converts_as_before():
+    """I + hat(theta) in three small angles: not an embedding, nothing is added."""
+    r = me.dynamicsymbols("a b c")
+    D = sp.Matrix([[1, -r[2], r[1]], [r[2], 1, -r[0]], [-r[1], r[0], 1]])
+    lm = body_on(D, r)
+    assert mechanics_rotations(lm) == ()
+    system = gvi.LagrangianSystem.from_lagranges_method(lm)
+    assert system.m == 0
+    assert system.L == to_plain_symbols(lm.bodies[0].kinetic_energy(lm.inertial), r).L
 
 
 def test_explicit_quaternion_must_list_coordinates():

@@ -58,8 +58,10 @@ matrix :math:`D` (child → parent) is classified by the coordinates it holds:
   :math:`D^\top D = |e|^4 I` identically: a quaternion (``orient_quaternion``, in any
   order and signs of its components, or composed with a constant rotation);
 - linear in nine coordinates with an invertible constant Jacobian: direction cosines;
-- anything else without coordinates, or trigonometric in them (angles): left as it is;
-- any other polynomial in coordinates: refused with a message.
+- anything else without coordinates, trigonometric in them (angles), or a polynomial
+  with a constant part (a linearised rotation): left as it is;
+- any other homogeneous polynomial in coordinates: refused with a message (the
+  coordinates are redundant, and no normalisation is known).
 
 Quaternions and direction-cosine matrices may also be given explicitly
 (``quaternions=``, ``direction_cosines=``), which is the route for rotations that
@@ -299,7 +301,15 @@ def _path(frame: Any, root: Any) -> list[Any]:
 
 
 def _classified(child: Any, parent: Any, coords: tuple) -> _Edge | None:
-    """The edge if ``parent.dcm(child)`` is a quaternion or direction cosines of coordinates."""
+    r"""The edge if ``parent.dcm(child)`` is a quaternion or direction cosines of coordinates.
+
+    ``None`` for orientations by angles, by constant rotations, or by polynomials
+    with a constant part (a linearised rotation :math:`I + \hat\theta`, say), which are
+    converted as they are. An orientation homogeneous of one degree in its
+    coordinates scales with them, so they are redundant and the kinetic energy is
+    singular along the scaling: when it is not a quaternion or direction cosines,
+    no normalisation is known and a ``ValueError`` says so.
+    """
     D = parent.dcm(child)
     held = tuple(c for c in coords if D.has(c))
     if not held:
@@ -308,18 +318,21 @@ def _classified(child: Any, parent: Any, coords: tuple) -> _Edge | None:
     Dp = D.xreplace(dict(zip(held, dummies, strict=True)))
     if not all(x.is_polynomial(*dummies) for x in Dp):
         return None  # angles: nothing to embed
-    where = f"the orientation of {child} relative to {parent}"
     if _is_quaternion_matrix(Dp, dummies):
         return _Edge(child, parent, "quaternion", held, D, [])
     if _is_matrix_of_coordinates(Dp, dummies):
         return _Edge(child, parent, "matrix", held, D, [])
+    degrees = {sp.Poly(x, *dummies).homogeneous_order() for x in Dp if x != 0}
+    if None in degrees or 0 in degrees or len(degrees) != 1:
+        return None
     raise ValueError(
-        f"{where} is a polynomial in the coordinates {', '.join(map(str, held))} that is "
-        "neither a quaternion (homogeneous quadratic with D^T D = |e|^4 I, as from "
-        "orient_quaternion) nor a matrix of nine direction cosines (as from "
-        "orient_explicit): galerkin_vi cannot tell which manifold holds these coordinates. "
-        "Orient the frame by orient_quaternion or orient_explicit of coordinates, or by "
-        "angles (orient_body_fixed)"
+        f"the orientation of {child} relative to {parent} is homogeneous of degree "
+        f"{degrees.pop()} in the coordinates {', '.join(map(str, held))}, so they are "
+        "redundant, but it is neither a quaternion (homogeneous quadratic with "
+        "D^T D = |e|^4 I, as from orient_quaternion) nor a matrix of nine direction "
+        "cosines (as from orient_explicit): galerkin_vi cannot tell which manifold holds "
+        "them. Orient the frame by orient_quaternion or orient_explicit of coordinates, "
+        "or by angles (orient_body_fixed)"
     )
 
 
