@@ -66,7 +66,7 @@ matrix :math:`D` (child → parent) is classified by the coordinates it holds:
 Quaternions and direction-cosine matrices may also be given explicitly
 (``quaternions=``, ``direction_cosines=``), which is the route for rotations that
 no listed body hangs on; :math:`c` is then read from the Lagrangian itself
-(:func:`_hessian_constant`).
+(:math:`c` from the trace of :math:`\partial^2 L/\partial\dot e^2` at the identity).
 
 A normalisation the model already states in ``hol_coneqs`` (constraints in the
 rotation's coordinates only that vanish on random rotations with the full rank)
