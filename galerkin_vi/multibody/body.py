@@ -85,21 +85,30 @@ def _inertia_tensor(inertia, name: str) -> sp.Matrix:
             f"RigidBody({name!r}): inertia must be 3 principal moments or a 3x3 tensor, "
             f"got shape {arr.shape}"
         )
-    if J != J.T:
+    if J.free_symbols:
+        if J != J.T:
+            raise ValueError(f"RigidBody({name!r}): the inertia tensor must be symmetric")
+        return J
+    # a numeric tensor rotated into the body frame (Q diag(J) Q^T) is symmetric only to
+    # round-off: accepted within a relative 1e-12, and symmetrised
+    arr = np.array(J, dtype=float)
+    scale = np.abs(arr).max()
+    if np.abs(arr - arr.T).max() > 1e-12 * scale:
         raise ValueError(f"RigidBody({name!r}): the inertia tensor must be symmetric")
-    if not J.free_symbols:
-        values = np.linalg.eigvalsh(np.array(J, dtype=float))
-        if values.min() <= 0:
-            raise ValueError(
-                f"RigidBody({name!r}): the inertia tensor must be positive definite, "
-                f"its principal moments are {values}"
-            )
-        s = values.sum() / 2
-        if np.any(values > s):
-            raise ValueError(
-                f"RigidBody({name!r}): the principal moments {values} violate the triangle "
-                "inequality J_i <= J_j + J_k that every rigid body satisfies"
-            )
+    J = (J + J.T) / 2
+    values = np.linalg.eigvalsh((arr + arr.T) / 2)
+    if values.min() <= 0:
+        raise ValueError(
+            f"RigidBody({name!r}): the inertia tensor must be positive definite, "
+            f"its principal moments are {values}"
+        )
+    # a flat plate (J_3 = J_1 + J_2) sits on the bound: equality within round-off is allowed
+    s = values.sum() / 2
+    if np.any(values > s + 1e-12 * scale):
+        raise ValueError(
+            f"RigidBody({name!r}): the principal moments {values} violate the triangle "
+            "inequality J_i <= J_j + J_k that every rigid body satisfies"
+        )
     return J
 
 
