@@ -162,7 +162,8 @@ def test_flat_plate_in_matrix_form_is_augmented_and_integrates():
     assert plate.needs_augmentation
     Lvv = numeric(sp.hessian(plate.kinetic_energy, plate.v[3:]), plate.q)
     R = random_rotations(1)[0]
-    assert np.linalg.eigvalsh(np.array(Lvv(*plate.coordinates_of(np.zeros(3), R)), float)).min() > 0.1
+    mass_matrix = np.array(Lvv(*plate.coordinates_of(np.zeros(3), R)), dtype=float)
+    assert np.linalg.eigvalsh(mass_matrix).min() > 0.1
     # the same plate, its tensor given in a rotated frame (J3 = J1 + J2 up to round-off)
     gvi.RigidBody("tilted", mass=1.0, inertia=full_inertia((1.0, 2.0, 3.0)), rotation="matrix")
     mb = gvi.Multibody([plate])
@@ -437,7 +438,7 @@ def three_link_chain():
                            rotation=("quaternion", "matrix")[i % 2]) for i in range(3)]  # fmt: skip
     joints = [gvi.joints.Spherical(None, links[0], point_b=[0, 0, 0.5])]
     joints += [gvi.joints.Spherical(a, b, point_a=[0, 0, -0.5], point_b=[0, 0, 0.5])
-               for a, b in zip(links, links[1:])]  # fmt: skip
+               for a, b in zip(links, links[1:], strict=False)]  # fmt: skip
     return gvi.Multibody(links, joints=joints, gravity=GRAVITY)
 
 
@@ -448,8 +449,8 @@ def chain3():
 
 def test_state_places_a_chain_through_its_joints(chain3):
     mb = chain3
-    R = dict(zip(("l0", "l1", "l2"), random_rotations(3, seed=11)))
-    W = dict(zip(("l0", "l1", "l2"), np.random.default_rng(1).normal(size=(3, 3))))
+    R = dict(zip(("l0", "l1", "l2"), random_rotations(3, seed=11), strict=True))
+    W = dict(zip(("l0", "l1", "l2"), np.random.default_rng(1).normal(size=(3, 3)), strict=True))
     q0, v0 = mb.state(rotations=R, angular_velocities=W, frame="space", project=False)
     system = mb.system
     assert np.abs(system.constraint_values(q0)).max() <= 1e-12
@@ -467,6 +468,7 @@ def test_state_places_a_chain_through_its_joints(chain3):
                                                   v_rows[:, sl])  # fmt: skip
         np.testing.assert_allclose(motion.angular_velocity_space[0], W[name], atol=1e-13)
         np.testing.assert_allclose(motion.rotation[0], R[name], atol=1e-14)
+
     # velocities of the joined points agree
     def point_velocity(name, r):
         sl = mb.coordinates(name)
@@ -480,8 +482,8 @@ def test_state_places_a_chain_through_its_joints(chain3):
 
 
 def test_state_in_the_space_and_body_frames_agree(chain3):
-    R = dict(zip(("l0", "l1", "l2"), random_rotations(3, seed=12)))
-    W = dict(zip(("l0", "l1", "l2"), np.random.default_rng(2).normal(size=(3, 3))))
+    R = dict(zip(("l0", "l1", "l2"), random_rotations(3, seed=12), strict=True))
+    W = dict(zip(("l0", "l1", "l2"), np.random.default_rng(2).normal(size=(3, 3)), strict=True))
     body = chain3.state(rotations=R, angular_velocities=W, frame="body")
     space = chain3.state(rotations=R, angular_velocities={n: R[n] @ W[n] for n in W},
                          frame="space")  # fmt: skip
@@ -495,8 +497,12 @@ def test_state_refuses_inconsistent_data_and_unknown_names(chain3):
     # projected instead, the joints hold
     q0, _ = chain3.state(positions={"l1": [0.2, 0.0, -1.4]})
     assert np.abs(chain3.system.constraint_values(q0)).max() <= 1e-12
-    for kwargs in (dict(positions={"nobody": [0, 0, 0]}), dict(rotations={"l9": np.eye(3)}),
-                   dict(velocities={"x": [0, 0, 0]}), dict(angular_velocities={"y": [0, 0, 1]})):
+    for kwargs in (
+        dict(positions={"nobody": [0, 0, 0]}),
+        dict(rotations={"l9": np.eye(3)}),
+        dict(velocities={"x": [0, 0, 0]}),
+        dict(angular_velocities={"y": [0, 0, 1]}),
+    ):
         with pytest.raises(KeyError, match="no body named"):
             chain3.state(**kwargs)
     with pytest.raises(KeyError):
@@ -687,8 +693,11 @@ def test_top_and_its_parts_pickle_after_a_run(top_setup):
     mb2, system2, top2, fresh2 = pickle.loads(pickle.dumps((mb, mb.system, top, fresh)))
     assert top2.q == top.q and top2.kinetic_energy == top.kinetic_energy
     assert system2.n == 7 and system2.m == 4
-    for copy in (fresh2, gvi.Integrator(mb2.system, gvi.Galerkin(2)),
-                 gvi.Integrator(system2, gvi.Galerkin(2))):
+    for copy in (
+        fresh2,
+        gvi.Integrator(mb2.system, gvi.Galerkin(2)),
+        gvi.Integrator(system2, gvi.Galerkin(2)),
+    ):
         again = copy.integrate(q0, v0=v0, h=0.01, n_steps=200)
         np.testing.assert_array_equal(again.q, traj.q)
         np.testing.assert_array_equal(again.p, traj.p)
