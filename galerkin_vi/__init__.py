@@ -27,6 +27,17 @@ from .method.galerkin import Galerkin
 from .method.quadrature import QuadratureRule, gauss_legendre, gauss_lobatto
 from .model.contacts import Contact
 from .model.system import LagrangianSystem
+from .multibody import (
+    BodyContact,
+    BodyForce,
+    BodyMotion,
+    BodyPoint,
+    Multibody,
+    Plane,
+    RigidBody,
+    Sphere,
+    joints,
+)
 from .run.events import Event
 from .run.status import RunStatus, SolverResult, SolverStatus
 from .run.trajectory import Trajectory
@@ -52,6 +63,15 @@ from .tools.choice import MethodChoice, choose_method
 from .tools.verification import OrderResult, measure_order
 
 __all__ = [
+    "BodyContact",
+    "BodyForce",
+    "BodyMotion",
+    "BodyPoint",
+    "Multibody",
+    "Plane",
+    "RigidBody",
+    "Sphere",
+    "joints",
     "ActionStatus",
     "AdaptiveIntegrator",
     "AdaptiveTrajectory",

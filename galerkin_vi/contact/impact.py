@@ -42,7 +42,7 @@ __all__ = [
 ]
 
 _NEWTON_ITERATIONS = 30
-_DIRECTION_ITERATIONS = 50
+_DIRECTION_SWEEPS = 3
 
 
 @dataclass(frozen=True)
@@ -172,18 +172,21 @@ def impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) ->
         p_plus = p + D.T @ lam
     else:
         rows, w0 = slip
-        G = np.vstack([g, rows])
+        k = 1 + rows.shape[0]
         # sticking: the slip stopped as well
-        v_plus, lam = _solve(system, t, q, p, v_minus, prm, G, G, [-e * u_minus, *(-w0)])
-        if np.linalg.norm(lam[1:]) <= contact.friction * lam[0]:
-            mode, tangential = "stick", lam[1:]
+        G, targets = _with_constraints(
+            system, t, q, prm, np.vstack([g, rows]), [-e * u_minus, *(-w0)]
+        )
+        v_plus, lam = _solve(system, t, q, p, v_minus, prm, G, G, targets)
+        if np.linalg.norm(lam[1:k]) <= contact.friction * lam[0]:
+            mode, tangential = "stick", lam[1:k]
             p_plus = p + G.T @ lam
         else:
             mode = "slide"
-            v_plus, normal, tangential = _sliding(
+            v_plus, normal, tangential, reaction = _sliding(
                 system, t, q, p, v_minus, prm, g, rows, w0, -e * u_minus, contact.friction
             )
-            p_plus = p + normal * g + rows.T @ tangential
+            p_plus = p + normal * g + rows.T @ tangential + reaction
             lam = np.array([normal])
     H = system.hamiltonian(np.vstack([q, q]), np.vstack([p, p_plus]), t, params)
     impact = Impact(
@@ -314,19 +317,61 @@ def _solve(system, t, q, p, v0, prm, D, C, targets) -> tuple[NDArray, NDArray]:
 
 
 def _sliding(system, t, q, p, v_minus, prm, g, rows, w0, target, mu):
-    r"""Sliding: :math:`\Lambda_t = -\mu\Lambda_n d` with d the post-impact slip direction
-    (fixed point from the pre-impact direction; exact in the plane)."""
+    r"""Sliding: :math:`\Lambda_t = -\mu\Lambda_n d` with :math:`d = w^+/|w^+|` the slip
+    direction after the impact.
+
+    A few fixed-point sweeps on the direction (from the pre-impact one; exact in the
+    plane) give the start of Newton on the whole system
+
+    .. math::
+
+        L_v(v) - p - \Lambda_n\bigl(\nabla\varphi - \mu T^{\mathsf T} d(v)\bigr)
+        - \mathcal G^{\mathsf T}\nu = 0,\quad \nabla\varphi\cdot v = u^+,\quad
+        \mathcal G v + g_t = 0,
+
+    with :math:`d(v) = (Tv + w_0)/|Tv + w_0|` and the exact Jacobian
+    (:math:`\partial d/\partial v = (I - dd^{\mathsf T})T/|w|`), so the velocity
+    after slides exactly against its impulse in space as in the plane.
+
+    Returns the velocity after, the normal and tangential impulses and the
+    holonomic constraints' reaction impulse :math:`\mathcal G^{\mathsf T}\nu` (zero
+    without constraints).
+    """
     w = rows @ v_minus + w0
     d = w / np.linalg.norm(w)
-    for _ in range(_DIRECTION_ITERATIONS):
-        # one unknown, the normal impulse, along the combined direction g - mu T^T d
+    for _ in range(_DIRECTION_SWEEPS):
         direction = (g - mu * (rows.T @ d))[None]
-        v, lam = _solve(system, t, q, p, v_minus, prm, direction, g[None], [target])
-        w_plus = rows @ v + w0
-        size = np.linalg.norm(w_plus)
-        new = w_plus / size if size > 0.0 else d
-        done = np.max(np.abs(new - d)) <= 1e-14
-        d = new if size > 0.0 else d
-        if done or rows.shape[0] == 1:
+        D, targets = _with_constraints(system, t, q, prm, direction, [target])
+        C, _ = _with_constraints(system, t, q, prm, g[None], [target])
+        v, lam = _solve(system, t, q, p, v_minus, prm, D, C, targets)
+        size = np.linalg.norm(rows @ v + w0)
+        if size == 0.0 or rows.shape[0] == 1:
+            return v, float(lam[0]), -mu * lam[0] * d, D[1:].T @ lam[1:]
+        d = (rows @ v + w0) / size
+    n = system.n
+    jac = system.constraint_jacobian(q, t, prm) if system.m else np.zeros((0, n))
+    rate = system.constraint_rate(q, t, prm) if system.m else np.zeros(0)
+    m = jac.shape[0]
+    normal, nu = float(lam[0]), lam[1:].copy()
+    for _ in range(_NEWTON_ITERATIONS):
+        slip = rows @ v + w0
+        size = np.linalg.norm(slip)
+        d = slip / size
+        Lv = system.evaluate("Lv", t, q, v, prm)
+        Lvv = system.evaluate("Lvv", t, q, v, prm).reshape(n, n)
+        push = g - mu * (rows.T @ d)
+        residual = np.concatenate(
+            [Lv - p - normal * push - jac.T @ nu, [g @ v - target], jac @ v + rate]
+        )
+        K = np.zeros((n + 1 + m, n + 1 + m))
+        K[:n, :n] = Lvv + mu * normal * rows.T @ ((np.eye(len(d)) - np.outer(d, d)) / size) @ rows
+        K[:n, n] = -push
+        K[:n, n + 1 :] = -jac.T
+        K[n, :n] = g
+        K[n + 1 :, :n] = jac
+        step = np.linalg.solve(K, -residual)
+        v, normal, nu = v + step[:n], normal + step[n], nu + step[n + 1 :]
+        if np.max(np.abs(step)) <= 1e-15 * max(1.0, np.max(np.abs(v)), abs(normal)):
             break
-    return v, float(lam[0]), -mu * lam[0] * d
+    d = (rows @ v + w0) / np.linalg.norm(rows @ v + w0)
+    return v, normal, -mu * normal * d, jac.T @ nu

@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ..model.constraints import project_momentum
 from ..reference import numpy as numpy_backend
 from .impact import ContactFunctions
 
@@ -169,7 +170,7 @@ class ContactStepper:
         system, tb, n = self.system, self.tables, self.n
         s = tb.d.size - 1
         m = self.size
-        C = np.vstack([np.zeros((1, n)), x.reshape(s, n)])
+        C = np.vstack([np.zeros((1, n)), x[: s * n].reshape(s, n)])
         G, H = numpy_backend.discrete_hessian(system, tb, t0, h, qk, C, self.prm)
         t, Q, V = numpy_backend.quadrature_points(tb, t0, h, qk, C)
         b, Phi, D = tb.b, tb.Phi, tb.D
@@ -230,7 +231,43 @@ class ContactStepper:
                 E[first] = y[first] - mu * y[i]
                 Ez[first, first] = 0.0
                 Ey[first, first], Ey[first, i] = 1.0, -mu
-        return F.ravel(), Fx, Fy, E, Ex, Ey, Ez, G[s] + forces_end, C
+        F = F.ravel()
+        if system.m:
+            F, Fx, Fy, Ex = self._with_constraints(t0, h, qk, C, x[s * n :], F, Fx, Fy, Ex)
+        return F, Fx, Fy, E, Ex, Ey, Ez, G[s] + forces_end, C
+
+    def _with_constraints(self, t0, h, qk, C, impulses, F, Fx, Fy, Ex):
+        r"""The stage equations with the holonomic constraints' impulses
+        :math:`-\mathcal G(q^\nu)^{\mathsf T}\Lambda^\nu` (:math:`\nu < s`) and the
+        constraints :math:`g(q^\nu) = 0` (:math:`\nu \ge 1`), as in
+        :mod:`galerkin_vi.loops.constrained`."""
+        system, n, s, mh = self.system, self.n, C.shape[0] - 1, self.system.m
+        sn = s * n
+        lam = impulses.reshape(s, mh)
+        t_nodes = t0 + self.tables.d * h
+        q_nodes = qk + C
+        jac = system.constraint_jacobian(q_nodes, t_nodes, self.prm)
+        hess = system.constraint_hessians(q_nodes, t_nodes, self.prm)
+        F = F - np.einsum("vja,vj->va", jac[:s], lam).ravel()
+        size = s * (n + mh)
+        J = np.zeros((size, size))
+        J[:sn, :sn] = Fx
+        for nu in range(s):
+            rows = slice(nu * n, (nu + 1) * n)
+            if nu >= 1:
+                J[rows, (nu - 1) * n : nu * n] -= np.einsum("j,jab->ab", lam[nu], hess[nu])
+            J[rows, sn + nu * mh : sn + (nu + 1) * mh] = -jac[nu].T
+            J[sn + nu * mh : sn + (nu + 1) * mh, nu * n : (nu + 1) * n] = jac[nu + 1]
+        g = system.constraint_values(q_nodes[1:], t_nodes[1:], self.prm).ravel()
+        Fy = np.vstack([Fy, np.zeros((s * mh, Fy.shape[1]))])
+        Ex = np.hstack([Ex, np.zeros((Ex.shape[0], s * mh))])
+        return np.concatenate([F, g]), J, Fy, Ex
+
+    def _projected(self, t: float, q, p) -> NDArray[np.float64]:
+        """The momentum projected onto the hidden constraint at the step's end."""
+        params = dict(zip(self.system.params, self.prm, strict=True))
+        v = self.system.inverse_legendre(q, p, t, params)
+        return project_momentum(self.system, t, q, p, v, self.prm)[0]
 
     def _jordan(self, z, y) -> NDArray[np.float64]:
         """z o y blockwise: products on the gaps, the cones' Jordan product."""
@@ -272,14 +309,18 @@ class ContactStepper:
                 alpha = min(alpha, _cone_step(v[layout.cone], dv[layout.cone]))
         return min(1.0, tau * alpha)
 
-    def _interior(self, v, floor: float) -> NDArray[np.float64]:
-        """``v`` moved strictly inside its orthants and cones."""
+    def _interior(self, v, floor: float, margin: float = 0.0) -> NDArray[np.float64]:
+        """``v`` moved strictly inside its orthants and cones; a spatial cone's scalar
+        at least ``margin`` inside, relative to the size of its vector part (on a
+        circular cone's boundary, the first steps of the iteration are cut to nothing)."""
         v = v.copy()
         for layout in self.layout:
             v[layout.normal] = max(v[layout.normal], floor)
             if layout.cone is not None:
                 c = v[layout.cone]
-                c[0] = max(c[0], np.linalg.norm(c[1:]) + floor)
+                size = np.linalg.norm(c[1:])
+                inside = margin if c.size > 2 else 0.0
+                c[0] = max(c[0], size * (1.0 + inside) + floor)
                 v[layout.cone] = c
         return v
 
@@ -287,12 +328,14 @@ class ContactStepper:
     def step(self, t0: float, h: float, qk, pk, guess_C, duals) -> StepResult:
         """One step of length h from (q_k, p_k): Mehrotra's predictor–corrector."""
         s = self.tables.d.size - 1
-        nx, m = s * self.n, self.size
-        x = np.asarray(guess_C, dtype=float)[1:].ravel().copy()
-        y = self._interior(np.asarray(duals, dtype=float), 1e-6)
+        nx, m = s * (self.n + self.system.m), self.size
+        x = np.zeros(nx)
+        x[: s * self.n] = np.asarray(guess_C, dtype=float)[1:].ravel()
+        y = self._interior(np.asarray(duals, dtype=float), 1e-6, margin=1.0)
         z0 = np.zeros(m)
         F, Fx, Fy, E, Ex, Ey, Ez, p_new, C = self._equations(t0, h, qk, pk, x, y, z0)
-        z = self._interior(-E, 1e-6)  # E(z = 0) = -(the slacks' values)
+        # E(z = 0) = -(the slacks' values); the slip speed zeta is free
+        z = self._interior(-E, 1e-6, margin=1.0)
         e = self._identity()
         blocks = self._blocks()
         scale = 1.0 + float(np.max(np.abs(pk)))
@@ -326,6 +369,8 @@ class ContactStepper:
             tau = max(0.99, 1.0 - gap)
             alpha = min(self._to_boundary(y, dy, tau), self._to_boundary(z, dz, tau))
             x, y, z = x + alpha * dx, y + alpha * dy, z + alpha * dz
+        if self.system.m:
+            p_new = self._projected(t0 + h, qk + C[s], p_new)
         normal = np.array([y[layout.normal] for layout in self.layout])
         tangential = np.zeros((len(self.layout), self.tangential_size))
         sticking = np.zeros(len(self.layout), dtype=bool)

@@ -20,7 +20,6 @@ from .derived import DerivedData
 from .mechanics import (
     MechanicsSymbols,
     PlainModel,
-    lagranges_method_model,
     to_plain_symbols,
     uses_dynamicsymbols,
 )
@@ -270,6 +269,8 @@ class LagrangianSystem:
         params: Mapping[sp.Symbol, float] | None = None,
         t: sp.Symbol | None = None,
         frame: object = None,
+        quaternions: Sequence | None = None,
+        direction_cosines: Sequence | None = None,
     ) -> LagrangianSystem:
         r"""The system of a :class:`sympy.physics.mechanics.LagrangesMethod`.
 
@@ -288,6 +289,13 @@ class LagrangianSystem:
         ``lm.form_lagranges_equations()``. All of it is rewritten into plain
         symbols as for ``LagrangianSystem(L, q=lm.q)``.
 
+        Rigid bodies (``lm.bodies``) on frames oriented by a quaternion of
+        coordinates (``orient_quaternion``) or by nine direction cosines
+        (``orient_explicit``) are embedded as :class:`~galerkin_vi.RigidBody` is:
+        the normalisation constraints and the regularising kinetic energy are
+        added (:mod:`galerkin_vi.multibody.mechanics`). Frames oriented by
+        angles convert unchanged.
+
         Parameters
         ----------
         lm : sympy.physics.mechanics.LagrangesMethod
@@ -299,7 +307,13 @@ class LagrangianSystem:
             Declares the system time dependent (the time of ``lm.q``); by
             default found from the model.
         frame : sympy.physics.vector.ReferenceFrame, optional
-            The inertial frame of the loads; defaults to ``lm.inertial``.
+            The inertial frame of the loads and of the bodies' orientations;
+            defaults to ``lm.inertial``.
+        quaternions : sequence of 4 dynamicsymbols each, optional
+            Quaternions (scalar first) to embed even where no listed body's frame
+            shows them (:func:`galerkin_vi.multibody.mechanics.mechanics_rotations`).
+        direction_cosines : sequence of 3×3 matrices of dynamicsymbols, optional
+            Rotation matrices (body → space) of nine coordinates to embed likewise.
 
         Raises
         ------
@@ -309,9 +323,14 @@ class LagrangianSystem:
             If ``lm`` has nonholonomic constraints.
         ValueError
             If a symbol has no value in ``params``, the loads have no inertial
-            frame, or as for the constructor.
+            frame, a body's frame is oriented by a polynomial in coordinates that
+            is neither a quaternion nor direction cosines, or as for the
+            constructor.
         """
-        model = lagranges_method_model(lm, frame)
+        # the multibody stage knows rigid bodies; imported here, as it builds on this module
+        from ..multibody.mechanics import embedded_model
+
+        model = embedded_model(lm, frame, quaternions, direction_cosines)
         return cls(
             model.L,
             q=list(model.q),

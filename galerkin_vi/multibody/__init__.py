@@ -1,0 +1,29 @@
+"""Rigid bodies and multibody systems in 3-D, built into a :class:`~galerkin_vi.LagrangianSystem`.
+
+The stage above :mod:`galerkin_vi.model`: bodies (:mod:`.body`) with embedded
+rotations, joints (:mod:`.joints`), loads (:mod:`.loads`), contact shapes
+(:mod:`.shapes`), their assembly (:mod:`.system`) and the motion of each body
+read back from a trajectory (:mod:`.motion`), and the embedding of
+:mod:`sympy.physics.mechanics` bodies oriented by quaternions or direction
+cosines (:mod:`.mechanics`).
+"""
+
+from . import joints, mechanics
+from .body import RigidBody
+from .loads import BodyForce
+from .motion import BodyMotion
+from .shapes import BodyContact, BodyPoint, Plane, Sphere
+from .system import Multibody
+
+__all__ = [
+    "BodyContact",
+    "BodyForce",
+    "BodyMotion",
+    "BodyPoint",
+    "Multibody",
+    "Plane",
+    "RigidBody",
+    "Sphere",
+    "joints",
+    "mechanics",
+]
