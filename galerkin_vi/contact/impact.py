@@ -353,25 +353,41 @@ def _sliding(system, t, q, p, v_minus, prm, g, rows, w0, target, mu):
     rate = system.constraint_rate(q, t, prm) if system.m else np.zeros(0)
     m = jac.shape[0]
     normal, nu = float(lam[0]), lam[1:].copy()
-    for _ in range(_NEWTON_ITERATIONS):
+
+    def equations(v, normal, nu, jacobian: bool):
         slip = rows @ v + w0
         size = np.linalg.norm(slip)
         d = slip / size
-        Lv = system.evaluate("Lv", t, q, v, prm)
-        Lvv = system.evaluate("Lvv", t, q, v, prm).reshape(n, n)
         push = g - mu * (rows.T @ d)
-        residual = np.concatenate(
-            [Lv - p - normal * push - jac.T @ nu, [g @ v - target], jac @ v + rate]
-        )
+        Lv = system.evaluate("Lv", t, q, v, prm)
+        r = np.concatenate([Lv - p - normal * push - jac.T @ nu, [g @ v - target], jac @ v + rate])
+        if not jacobian:
+            return r, None
         K = np.zeros((n + 1 + m, n + 1 + m))
-        K[:n, :n] = Lvv + mu * normal * rows.T @ ((np.eye(len(d)) - np.outer(d, d)) / size) @ rows
+        Lvv = system.evaluate("Lvv", t, q, v, prm).reshape(n, n)
+        bend = (np.eye(len(d)) - np.outer(d, d)) / size
+        K[:n, :n] = Lvv + mu * normal * rows.T @ bend @ rows
         K[:n, n] = -push
         K[:n, n + 1 :] = -jac.T
         K[n, :n] = g
         K[n + 1 :, :n] = jac
+        return r, K
+
+    residual, K = equations(v, normal, nu, True)
+    for _ in range(_NEWTON_ITERATIONS):
         step = np.linalg.solve(K, -residual)
-        v, normal, nu = v + step[:n], normal + step[n], nu + step[n + 1 :]
         if np.max(np.abs(step)) <= 1e-15 * max(1.0, np.max(np.abs(v)), abs(normal)):
             break
+        # backtracking on the residual's norm: the full step can cycle where the
+        # slip direction turns fast with v
+        alpha, size = 1.0, np.linalg.norm(residual)
+        while True:
+            trial = (v + alpha * step[:n], normal + alpha * step[n], nu + alpha * step[n + 1 :])
+            new, _ = equations(*trial, False)
+            if np.linalg.norm(new) < size or alpha < 1e-6:
+                break
+            alpha /= 2
+        v, normal, nu = trial
+        residual, K = equations(v, normal, nu, True)
     d = (rows @ v + w0) / np.linalg.norm(rows @ v + w0)
     return v, normal, -mu * normal * d, jac.T @ nu
