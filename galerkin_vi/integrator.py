@@ -138,6 +138,14 @@ class Integrator:
     def __repr__(self) -> str:
         return f"Integrator({self.system!r}, {self.method!r}, backend={self.backend!r})"
 
+    def __getstate__(self) -> dict:
+        # the run specs hold addresses of compiled code, valid in this process only;
+        # a copy derives them again on first use
+        state = self.__dict__.copy()
+        for name in ("_spec", "_summary", "run_spec", "tangent_run_spec"):
+            state.pop(name, None)
+        return state
+
     @cached_property
     def _spec(self) -> codegen.KernelSpec:
         return codegen.kernel_spec(self.system)

@@ -776,11 +776,6 @@ def test_top_and_its_parts_pickle_after_a_run(top_setup):
     np.testing.assert_array_equal(v_b, v0)
 
 
-@pytest.mark.xfail(
-    strict=True, raises=ValueError,
-    reason="a used Integrator does not pickle: its run_spec holds ctypes pointers "
-    "(galerkin_vi/run/spec.py, not the multibody package)",
-)  # fmt: skip
 def test_a_used_integrator_of_a_multibody_system_pickles(top_setup):
     top, mb, integrator, q0, v0, traj = top_setup
     copy = pickle.loads(pickle.dumps(integrator))
