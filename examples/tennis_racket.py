@@ -71,9 +71,7 @@ def main(argv: list[str] | None = None) -> dict:
     w = motion.angular_velocity
     energy = traj.energy()
     body_momentum = np.linalg.norm(w * J, axis=1)
-    space = np.column_stack(
-        [traj.momentum(mb.angular_momentum(axis).xi) for axis in np.eye(3)]
-    )
+    space = np.column_stack([traj.momentum(mb.angular_momentum(axis).xi) for axis in np.eye(3)])
     rate = OMEGA0[1] * np.sqrt((J[1] - J[0]) * (J[2] - J[1]) / (J[0] * J[2]))
     flips = flip_times(traj.t, w[:, 1])
     print(f"{len(traj.t) - 1} steps of h = {args.h:g} (Galerkin(2), order 4) in {seconds:.2f} s")
@@ -127,9 +125,7 @@ def plot(path: Path, motion, momentum: np.ndarray) -> None:
 
 def _unit_sphere(ax) -> None:
     u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 25), np.linspace(0, np.pi, 13))
-    ax.plot_wireframe(
-        np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="0.8", lw=0.5
-    )
+    ax.plot_wireframe(np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="0.8", lw=0.5)
 
 
 def _equal_axes(ax, r: float) -> None:
