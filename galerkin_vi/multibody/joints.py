@@ -5,15 +5,27 @@ fixed on body *b*; ``None`` for a body is the ground (space), whose points and
 axes are given in space coordinates. With :math:`d = x_b + R_b p_b - x_a - R_a p_a`
 the separation of the two points and :math:`n_a, n_b` body-fixed axes,
 
-==============  ===============================================================  ===========
-joint           constraints                                                      removes
-==============  ===============================================================  ===========
-``Spherical``   :math:`d = 0`                                                    3
-``Revolute``    :math:`d = 0`, :math:`(R_a u_a)\cdot(R_b n_b) = (R_a w_a)\cdot(R_b n_b) = 0`  5
-``Universal``   :math:`d = 0`, :math:`(R_a n_a)\cdot(R_b n_b) = 0`                 4
-``Prismatic``   :math:`(R_a u_a)\cdot d = (R_a w_a)\cdot d = 0`, :math:`\rho = 0`                5
-``Fixed``       :math:`d = 0`, :math:`\rho = 0`                                      6
-==============  ===============================================================  ===========
+.. list-table::
+   :header-rows: 1
+
+   * - joint
+     - constraints
+     - removes
+   * - ``Spherical``
+     - :math:`d = 0`
+     - 3
+   * - ``Revolute``
+     - :math:`d = 0`, :math:`(R_a u_a)\cdot(R_b n_b) = (R_a w_a)\cdot(R_b n_b) = 0`
+     - 5
+   * - ``Universal``
+     - :math:`d = 0`, :math:`(R_a n_a)\cdot(R_b n_b) = 0`
+     - 4
+   * - ``Prismatic``
+     - :math:`(R_a u_a)\cdot d = (R_a w_a)\cdot d = 0`, :math:`\rho = 0`
+     - 5
+   * - ``Fixed``
+     - :math:`d = 0`, :math:`\rho = 0`
+     - 6
 
 where :math:`u_a, w_a` complete :math:`n_a` to an orthonormal frame (the hinge and
 the slider keep :math:`R_b n_b` along :math:`R_a n_a`),
