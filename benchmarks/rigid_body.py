@@ -55,7 +55,6 @@ from galerkin_vi.tools import benchmark as bm  # noqa: E402
 INERTIA = np.array([2.0, 3.0, 4.5])
 OMEGA0 = np.array([0.4, 0.2, 1.0])
 TARGETS = (1e-3, 1e-5, 1e-7, 1e-9)
-HAVE_MULTIBODY = hasattr(gvi, "RigidBody") and hasattr(gvi, "Multibody")
 
 
 @dataclass
@@ -198,9 +197,7 @@ def galerkin_vi_free_body(
 
 
 def galerkin_vi_configs() -> list[tuple[str, Callable[[float, int, int], tuple[Row, np.ndarray]]]]:
-    """The galerkin_vi configurations of the free-body tables (none before ``gvi.RigidBody``)."""
-    if not HAVE_MULTIBODY:
-        return []
+    """The galerkin_vi configurations of the free-body tables."""
     configs = []
     for rotation in ("quaternion", "matrix"):
         for s in (1, 2, 3, 4):
@@ -213,8 +210,10 @@ def galerkin_vi_configs() -> list[tuple[str, Callable[[float, int, int], tuple[R
     return configs
 
 
-def galerkin_vi_chain(spec: mjb.ChainSpec, s: int, h: float, n_steps: int, save_every: int) -> Row:
-    """galerkin_vi on the chain of ``spec``: matrix-rotation links on ``joints.Spherical``.
+def galerkin_vi_chain(
+    spec: mjb.ChainSpec, s: int, h: float, n_steps: int, save_every: int, rotation: str
+) -> Row:
+    """galerkin_vi on the chain of ``spec``: links with ``rotation`` on ``joints.Spherical``.
 
     Link i's joint is at body point ``(0, 0, +l/2)`` from its centre of mass (its upper end)
     and link i+1 hangs from link i's ``(0, 0, -l/2)``; poses from
@@ -223,7 +222,7 @@ def galerkin_vi_chain(spec: mjb.ChainSpec, s: int, h: float, n_steps: int, save_
     half = spec.length / 2
     inertia = list(spec.principal_inertia())
     bodies = [
-        gvi.RigidBody(f"l{i}", mass=spec.mass, inertia=inertia, rotation="matrix")
+        gvi.RigidBody(f"l{i}", mass=spec.mass, inertia=inertia, rotation=rotation)
         for i in range(spec.n_links)
     ]
     joints = [
@@ -254,7 +253,7 @@ def galerkin_vi_chain(spec: mjb.ChainSpec, s: int, h: float, n_steps: int, save_
     energy = traj.energy()
     return Row(
         "galerkin_vi",
-        f"galerkin_vi matrix s={s}",
+        f"galerkin_vi {rotation} s={s}",
         h,
         traj.n_steps,
         cpu,
@@ -355,12 +354,9 @@ def chain_study(
                     extra={"energy0": float(res.energy[0])},
                 )
             )
-        if HAVE_MULTIBODY:
+        for rotation in ("quaternion", "matrix"):
             for s in gvi_degrees:
-                try:
-                    rows.append(galerkin_vi_chain(spec, s, h, n_steps, k))
-                except Exception as exc:  # the lead's API may still move
-                    print(f"  galerkin_vi chain s={s}: skipped ({type(exc).__name__}: {exc})")
+                rows.append(galerkin_vi_chain(spec, s, h, n_steps, k, rotation))
     return rows
 
 
@@ -506,8 +502,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "work: Newton iterations per step, or DOP853's evaluations)"
     )
     print(
-        f"# Rigid bodies: J = {INERTIA.tolist()}, omega0 = {OMEGA0.tolist()}; galerkin_vi "
-        f"multibody {'present' if HAVE_MULTIBODY else 'absent (its rows are left out)'}"
+        f"# Rigid bodies: J = {INERTIA.tolist()}, omega0 = {OMEGA0.tolist()}"
     )
 
     err_rows, source = error_study(args.h, args.tols, args.t_error, configs)

@@ -336,7 +336,7 @@ def constrained_loop(
         else:
             status, its, increment, residual = solve_constrained_band(
                 fn, tk, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, maxiter, work, cw, bw,
-                traits, band,
+                traits, band, k > 0,
             )  # fmt: skip
         slot = k // save_every
         if its > iterations_out[slot]:

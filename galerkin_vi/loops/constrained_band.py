@@ -52,7 +52,11 @@ from .point import (
 )
 from .traits import HAS_FV, HAS_LQV
 
-__all__ = ["make_band_work", "project_hidden_band", "solve_constrained_band"]
+__all__ = ["STALE_RATIO", "make_band_work", "project_hidden_band", "solve_constrained_band"]
+
+#: the contraction of an increment by an earlier step's factors above which the
+#: band iteration factorises afresh
+STALE_RATIO = 0.125
 
 
 @kernel
@@ -71,10 +75,18 @@ def make_band_work(s, n, m, band):
 
 @kernel
 def solve_constrained_band(
-    fn, t0, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, maxiter, work, cw, bw, traits, band
-):
+    fn, t0, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, maxiter, work, cw, bw, traits, band,
+    reuse,
+):  # fmt: skip
     """:func:`.constrained.solve_constrained_stages` with the stage Jacobian in band
-    storage (module notes); the same arguments, the band work ``bw`` and ``band``."""
+    storage (module notes); the same arguments, the band work ``bw`` and ``band``.
+
+    With ``reuse``, the iteration starts with the factors left in ``bw`` by an
+    earlier step (a simplified Newton iteration: the stage Jacobian moves by
+    :math:`O(h)` from one step to the next); it factorises afresh once they
+    contract slowly (an increment above :data:`STALE_RATIO` times the one before)
+    or fail.
+    """
     Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = work
     _, _, _, g, Gq, gt, Hg, _, _, _, qn = cw
     A, X, pivot, B, Y, pivot_b = bw
@@ -86,7 +98,8 @@ def solve_constrained_band(
     diag = 2 * kb
     previous = np.inf
     residual = np.inf
-    frozen = False
+    frozen = reuse
+    stale = reuse  # the factors are an earlier step's
     base = 0.0
     for a in range(n):
         base = max(base, abs(qk[a]))
@@ -171,6 +184,12 @@ def solve_constrained_band(
         status = newton_status(increment, previous, 1.0 + max(size, base), tol, it, maxiter)
         if status == CONVERGED:
             return STATUS_OK, it, increment, residual
+        if stale and (status != CONTINUE or increment > STALE_RATIO * previous):
+            # an earlier step's factors contract too slowly here: factorise afresh
+            stale = False
+            frozen = False
+            previous = np.inf
+            continue
         if status != CONTINUE:
             return STATUS_NEWTON_FAILED, it, increment, residual
         if increment <= FREEZE * (1.0 + size):
