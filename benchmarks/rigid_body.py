@@ -501,9 +501,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "(DOP853 rows: steps = right-hand-side evaluations, ns/step = ns per evaluation; "
         "work: Newton iterations per step, or DOP853's evaluations)"
     )
-    print(
-        f"# Rigid bodies: J = {INERTIA.tolist()}, omega0 = {OMEGA0.tolist()}"
-    )
+    print(f"# Rigid bodies: J = {INERTIA.tolist()}, omega0 = {OMEGA0.tolist()}")
 
     err_rows, source = error_study(args.h, args.tols, args.t_error, configs)
     print_table(
