@@ -18,7 +18,7 @@ import sympy as sp
 from scipy.spatial.transform import Rotation
 
 import galerkin_vi as gvi
-from galerkin_vi.multibody.rotations import (
+from galerkin_vi.rotations import (
     body_rates_matrix,
     hat,
     matrix_to_quaternion,

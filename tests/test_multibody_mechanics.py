@@ -18,7 +18,7 @@ import sympy.physics.mechanics as me
 
 import galerkin_vi as gvi
 from galerkin_vi.model.mechanics import to_plain_symbols
-from galerkin_vi.multibody.mechanics import from_lagranges_method, mechanics_rotations
+from galerkin_vi.model.rigid_frames import mechanics_rotations
 
 MASS = 2.0
 MOMENTS = (1.0, 2.0, 3.0)
@@ -172,7 +172,7 @@ def test_direction_cosines_without_bodies_are_regularised_by_the_augmentation():
     R = sp.Matrix(3, 3, r)
     (rotation,) = mechanics_rotations(lm, direction_cosines=[R])
     assert float(rotation.augmentation_constant) == pytest.approx(2 / 3 * sum(MOMENTS))
-    system = from_lagranges_method(lm, direction_cosines=[R])
+    system = gvi.LagrangianSystem.from_lagranges_method(lm, direction_cosines=[R])
     assert (system.n, system.m) == (12, 6)
     _, q0, v0, reference = gvi_free_body("matrix")
     traj = integrate(system, q0, v0)

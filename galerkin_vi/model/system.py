@@ -23,6 +23,7 @@ from .mechanics import (
     to_plain_symbols,
     uses_dynamicsymbols,
 )
+from .rigid_frames import embedded_model
 from .symbolic import (
     ConstraintPieces,
     PointwisePieces,
@@ -293,7 +294,7 @@ class LagrangianSystem:
         coordinates (``orient_quaternion``) or by nine direction cosines
         (``orient_explicit``) are embedded as :class:`~galerkin_vi.RigidBody` is:
         the normalisation constraints and the regularising kinetic energy are
-        added (:mod:`galerkin_vi.multibody.mechanics`). Frames oriented by
+        added (:mod:`galerkin_vi.model.rigid_frames`). Frames oriented by
         angles convert unchanged.
 
         Parameters
@@ -311,7 +312,7 @@ class LagrangianSystem:
             defaults to ``lm.inertial``.
         quaternions : sequence of 4 dynamicsymbols each, optional
             Quaternions (scalar first) to embed even where no listed body's frame
-            shows them (:func:`galerkin_vi.multibody.mechanics.mechanics_rotations`).
+            shows them (:func:`galerkin_vi.model.rigid_frames.mechanics_rotations`).
         direction_cosines : sequence of 3×3 matrices of dynamicsymbols, optional
             Rotation matrices (body → space) of nine coordinates to embed likewise.
 
@@ -327,9 +328,6 @@ class LagrangianSystem:
             is neither a quaternion nor direction cosines, or as for the
             constructor.
         """
-        # the multibody stage knows rigid bodies; imported here, as it builds on this module
-        from ..multibody.mechanics import embedded_model
-
         model = embedded_model(lm, frame, quaternions, direction_cosines)
         return cls(
             model.L,

@@ -23,7 +23,7 @@ the term :math:`\tfrac{c}{2}\|\operatorname{sym}(R^\top\dot R)\|_F^2`, zero on t
 constraint manifold, is added.
 
 **Unit quaternion** (4 coordinates, 1 constraint :math:`|\mathsf q|^2 = 1`). With
-:math:`\omega = 2G(\mathsf q)\dot{\mathsf q}` (:mod:`.rotations`),
+:math:`\omega = 2G(\mathsf q)\dot{\mathsf q}` (:mod:`galerkin_vi.rotations`),
 :math:`\tfrac12\omega^\top J\omega = 2\dot{\mathsf q}^\top G^\top J G\dot{\mathsf q}` is singular
 along :math:`\mathsf q` (:math:`G\mathsf q = 0`). The body's kinetic energy is augmented,
 
@@ -53,7 +53,7 @@ from functools import cached_property
 import numpy as np
 import sympy as sp
 
-from .rotations import (
+from ..rotations import (
     body_rates_matrix,
     hat,
     matrix_to_quaternion,

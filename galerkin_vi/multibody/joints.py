@@ -44,8 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
+from ..rotations import symbolic_vee
 from .body import RigidBody
-from .rotations import symbolic_vee
 
 __all__ = ["Fixed", "Joint", "Prismatic", "Revolute", "Spherical", "Universal"]
 

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ..rotations import matrix_to_quaternion, quaternion_to_matrix
 from .body import RigidBody
-from .rotations import matrix_to_quaternion, quaternion_to_matrix
 
 __all__ = ["BodyMotion", "body_motion"]
 

@@ -33,8 +33,8 @@ import numpy as np
 import sympy as sp
 
 from ..model.contacts import Contact
+from ..rotations import symbolic_hat
 from .body import RigidBody
-from .rotations import symbolic_hat
 
 __all__ = ["BodyContact", "BodyPoint", "Plane", "Sphere"]
 

@@ -26,17 +26,17 @@ from numpy.typing import ArrayLike, NDArray
 from ..model.constraints import consistent_initial_state
 from ..model.contacts import Contact
 from ..model.system import LagrangianSystem, MomentumMap
-from .body import RigidBody
-from .joints import Joint
-from .loads import BodyForce, generalised_forces
-from .motion import BodyMotion, body_motion
-from .rotations import (
+from ..rotations import (
     body_rates_matrix,
     hat,
     quaternion_to_matrix,
     space_rates_matrix,
     symbolic_hat,
 )
+from .body import RigidBody
+from .joints import Joint
+from .loads import BodyForce, generalised_forces
+from .motion import BodyMotion, body_motion
 from .shapes import BodyContact
 
 __all__ = ["Multibody"]

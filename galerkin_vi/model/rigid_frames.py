@@ -3,7 +3,7 @@ r"""Rigid bodies of :mod:`sympy.physics.mechanics` oriented by quaternions or di
 A ``LagrangesMethod`` whose bodies hang on frames oriented by a quaternion of
 coordinates (``B.orient_quaternion(N, (q0, q1, q2, q3))``) or by nine direction
 cosines (``B.orient_explicit(N, Matrix(3, 3, r))``) is an *embedded* rigid-body
-model (:mod:`.body`): redundant coordinates that describe a rotation only on a
+model (:mod:`galerkin_vi.multibody.body`): redundant coordinates that describe a rotation only on a
 constraint manifold. As written by mechanics it is singular, and the manifold is
 unknown to the integrator. :func:`embedded_model` completes it the way
 :class:`~galerkin_vi.RigidBody` is built:
@@ -18,7 +18,8 @@ unknown to the integrator. :func:`embedded_model` completes it the way
 
 with :math:`J` the sum of the central inertias of the bodies the quaternion turns,
 which vanishes to second order on the manifold and makes
-:math:`\partial^2 L/\partial\dot{\mathsf q}^2` regular (:mod:`.body`). For a free body the result is
+:math:`\partial^2 L/\partial\dot{\mathsf q}^2` regular (:mod:`galerkin_vi.multibody.body`).
+For a free body the result is
 :class:`~galerkin_vi.RigidBody` ``(rotation="quaternion")`` term by term.
 
 **Direction cosines.** With :math:`R` (body → parent) the coordinates' matrix,
@@ -75,7 +76,7 @@ is not added again.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -83,14 +84,12 @@ import numpy as np
 import sympy as sp
 from sympy.core.function import AppliedUndef
 
-from ..model.mechanics import MechanicsModel, lagranges_method_model
-from ..model.system import LagrangianSystem
-from .rotations import quaternion_to_matrix, symbolic_quaternion_matrix
+from ..rotations import quaternion_to_matrix, symbolic_quaternion_matrix
+from .mechanics import MechanicsModel, lagranges_method_model
 
 __all__ = [
     "MechanicsRotation",
     "embedded_model",
-    "from_lagranges_method",
     "mechanics_rotations",
 ]
 
@@ -144,65 +143,6 @@ class _Edge:
     coordinates: tuple[sp.Expr, ...]
     matrix: sp.Matrix
     bodies: list[Any]
-
-
-def from_lagranges_method(
-    lm: Any,
-    params: Mapping[sp.Symbol, float] | None = None,
-    t: sp.Symbol | None = None,
-    frame: Any = None,
-    quaternions: Sequence[Sequence[sp.Expr]] | None = None,
-    direction_cosines: Sequence[Any] | None = None,
-) -> LagrangianSystem:
-    r"""The system of a ``LagrangesMethod`` whose rigid bodies are oriented by quaternions
-    or direction cosines: :func:`embedded_model`, rewritten into plain symbols.
-
-    Parameters
-    ----------
-    lm : sympy.physics.mechanics.LagrangesMethod
-        The model; give it ``bodies=`` and ``frame=`` so that its rotations are found.
-    params, t
-        As for :meth:`~galerkin_vi.LagrangianSystem.from_lagranges_method`.
-    frame : sympy.physics.vector.ReferenceFrame, optional
-        The inertial frame; defaults to ``lm.inertial``.
-    quaternions : sequence of sequences of dynamicsymbols, optional
-        Quaternions (scalar first, up to four coordinates each) to embed whether or
-        not they are detected.
-    direction_cosines : sequence of 3×3 matrices of dynamicsymbols, optional
-        Rotation matrices (body → space) of nine coordinates to embed likewise.
-
-    Returns
-    -------
-    LagrangianSystem
-        ``q`` are plain symbols named like the coordinates
-        (``system.mechanics_symbols`` holds the map); the normalisation
-        constraints follow the model's ``hol_coneqs``.
-
-    Raises
-    ------
-    ValueError
-        If a frame's orientation is a polynomial in coordinates that is neither
-        a quaternion nor direction cosines, if an explicit quaternion or matrix
-        is malformed, or as for :meth:`LagrangianSystem.from_lagranges_method`.
-
-    Examples
-    --------
-    >>> import sympy.physics.mechanics as me
-    >>> import galerkin_vi as gvi
-    >>> from galerkin_vi.multibody.mechanics import from_lagranges_method
-    >>> e = me.dynamicsymbols("e0:4")
-    >>> N, B = me.ReferenceFrame("N"), me.ReferenceFrame("B")
-    >>> B.orient_quaternion(N, e)
-    >>> O = me.Point("O"); O.set_vel(N, 0)
-    >>> body = me.RigidBody("b", O, B, 1, (me.inertia(B, 1, 2, 3), O))
-    >>> lm = me.LagrangesMethod(me.Lagrangian(N, body), e, bodies=[body], frame=N)
-    >>> system = from_lagranges_method(lm)
-    >>> system.n, system.m
-    (4, 1)
-    """
-    return LagrangianSystem.from_lagranges_method(
-        lm, params, t, frame, quaternions=quaternions, direction_cosines=direction_cosines
-    )
 
 
 def embedded_model(
