@@ -64,8 +64,6 @@ LONGEST_PIECE = 65536
 
 #: a gap above OPEN_GAP * max(1, |q|) at a step's start: the contact is open there
 OPEN_GAP = 1e-9
-#: added to the gap of a contact kept apart while its first touch is looked for
-OUT_OF_REACH = 1e6
 
 #: the modes of ``integrate(contact_mode=...)``
 CONTACT_MODES = ("auto", "event", "time-stepping")
@@ -292,8 +290,8 @@ class _Run:
         from .time_stepping import ContactStepper
 
         if self._stepper is None:
-            # one per run, not kept with the system: it holds the run's parameters and
-            # gap offsets, and ensemble members run in threads at once
+            # one per run, not kept with the system: it holds the run's parameters, and
+            # ensemble members run in threads at once
             tables = self.integrator.method.tables
             self._stepper = ContactStepper(self.functions, tables, self.prm)
             self._duals = np.ones(self._stepper.size)
@@ -314,18 +312,12 @@ class _Run:
     def _stepping(self, t: float, q, p, tau: float, k: int, excluded: int | None = None):
         """One complementarity step of length tau (contact ``excluded`` kept apart)."""
         stepper = self._stepper
-        stepper.offsets[:] = 0.0
-        if excluded is not None:
-            stepper.offsets[excluded] = OUT_OF_REACH  # its gap far open: no force
-        try:
-            guess = self._guess(q, p, t, tau)
-            result = stepper.step(t, tau, q, p, guess, self._duals)
-            if not result.converged:
-                # the last step's forces may start it far from this one's (a contact that
-                # just took the load): once more from the centre of the cones
-                result = stepper.step(t, tau, q, p, guess, np.ones_like(self._duals))
-        finally:
-            stepper.offsets[:] = 0.0
+        guess = self._guess(q, p, t, tau)
+        result = stepper.step(t, tau, q, p, guess, self._duals, excluded)
+        if not result.converged:
+            # the last step's forces may start it far from this one's (a contact that
+            # just took the load): once more from the centre of the cones
+            result = stepper.step(t, tau, q, p, guess, np.ones_like(self._duals), excluded)
         if not result.converged:
             raise _Stop(
                 RunStatus.NO_CONVERGENCE,

@@ -46,6 +46,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 from numpy.typing import NDArray
 
 from ..model.constraints import project_momentum
@@ -60,6 +61,10 @@ MAX_ITERATIONS = 50
 COMPLEMENTARITY = 1e-12
 #: relative residual of the stage and slack equations at which a step is solved
 RESIDUAL = 1e-12
+#: halvings of a step at most in the line search
+LINE_SEARCH = 10
+import os
+_TRACE = lambda: os.environ.get('GVI_TRACE')
 
 
 @dataclass(frozen=True)
@@ -152,8 +157,6 @@ class ContactStepper:
         ]
         self.size = size
         self.n = n
-        #: added to each contact's gap (a contact kept apart: see contact.runs)
-        self.offsets = np.zeros(len(system.contacts))
         self.tangential_size = max(
             (len(c.slip) for c in system.contacts if c.friction > 0.0), default=1
         )
@@ -207,7 +210,7 @@ class ContactStepper:
         Fy[:, normal] = node_force[:, :s].reshape(len(normal), sn).T
         Fx += bend(np.einsum("j,ijab->iab", lam, all_hess))
         # the gaps at the step's end, q_{k+1} = q_k + C^s
-        E[normal] -= gaps_end + self.offsets
+        E[normal] -= gaps_end
         Ex[normal, (s - 1) * n :] = -grads_end
         if fn.slips is not None:
             all_w, all_wq, all_wv, all_wvq = (self._each(f, t, Q, V) for f in fn.slips)
@@ -325,52 +328,168 @@ class ContactStepper:
         return v
 
     # ---------------------------------------------------------------- solve
-    def step(self, t0: float, h: float, qk, pk, guess_C, duals) -> StepResult:
-        """One step of length h from (q_k, p_k): Mehrotra's predictor–corrector."""
+    def _fixed(self, excluded: int | None) -> NDArray[np.bool_]:
+        """The entries of y and z of the contact kept apart (none: all False)."""
+        fixed = np.zeros(self.size, dtype=bool)
+        if excluded is not None:
+            layout = self.layout[excluded]
+            fixed[layout.normal] = True
+            if layout.cone is not None:
+                fixed[layout.cone] = True
+        return fixed
+
+    def _newton_matrix(self, equations, W, Winv, lam, fixed) -> NDArray[np.float64]:
+        r"""The Jacobian of (stage equations, slacks' definitions, :math:`\lambda \circ
+        \lambda`) in (x, y, z), :math:`\lambda = W z = W^{-1} y` (:meth:`_scaling`);
+        the rows of a contact kept apart say dy = dz = 0 (its y stays 0)."""
+        F, Fx, Fy, E, Ex, Ey, Ez = equations[:7]
+        nx, m = Fx.shape[0], self.size
+        K = np.zeros((nx + 2 * m, nx + 2 * m))
+        K[:nx, :nx], K[:nx, nx : nx + m] = Fx, Fy
+        K[nx : nx + m, :nx], K[nx : nx + m, nx : nx + m] = Ex, Ey
+        K[nx : nx + m, nx + m :] = Ez
+        L = self._arrow(lam)
+        K[nx + m :, nx : nx + m] = L @ Winv
+        K[nx + m :, nx + m :] = L @ W
+        rows = nx + np.flatnonzero(fixed)
+        K[rows] = 0.0
+        K[rows, rows + m] = 1.0  # dz = 0
+        K[rows + m] = 0.0
+        K[rows + m, rows] = 1.0  # dy = 0
+        return K
+
+    def _scaling(self, z, y) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        r"""The Nesterov–Todd scaling W (block diagonal) of the slacks z and duals y.
+
+        W z = W^{-1} y = :math:`\lambda`. On a gap, :math:`w = \sqrt{y / z}`; on a
+        cone, with :math:`J = \operatorname{diag}(1, -1, \dots)`,
+        :math:`\bar z = z / \sqrt{z^{\mathsf T} J z}`, :math:`\bar y` likewise,
+        :math:`\gamma = \sqrt{(1 + \bar z^{\mathsf T} \bar y) / 2}`,
+        :math:`w = (J \bar z + \bar y) / (2\gamma)`,
+        :math:`\eta = (y^{\mathsf T} J y / z^{\mathsf T} J z)^{1/4}`,
+
+        .. math::
+
+            W = \eta \begin{pmatrix} w_0 & w_1^{\mathsf T} \\
+                w_1 & I + w_1 w_1^{\mathsf T} / (1 + w_0) \end{pmatrix}
+
+        (Vandenberghe, *The CVXOPT linear and quadratic cone program solvers*,
+        2010). Newton's equation for :math:`\lambda \circ \lambda = \kappa e` in
+        these scaled variables keeps the iterates well inside the cones where
+        the unscaled :math:`z \circ y` jams against a cone's boundary (a
+        sliding contact). Returns (W, W^{-1}).
+        """
+        m = self.size
+        W, Winv = np.eye(m), np.eye(m)
+        if os.environ.get("GVI_NONT"):
+            return np.diag(np.sqrt(y / z)), np.diag(np.sqrt(z / y))
+        for layout in self.layout:
+            i = layout.normal
+            if y[i] > 0.0:  # a contact kept apart (y = 0) keeps W = 1: its rows are fixed
+                W[i, i] = np.sqrt(y[i] / z[i])
+                Winv[i, i] = 1.0 / W[i, i]
+            if layout.cone is None or y[layout.cone][0] <= 0.0:
+                continue
+            zc, yc = z[layout.cone], y[layout.cone]
+            zz = np.sqrt(max(zc[0] ** 2 - zc[1:] @ zc[1:], 1e-300))
+            yy = np.sqrt(max(yc[0] ** 2 - yc[1:] @ yc[1:], 1e-300))
+            zb, yb = zc / zz, yc / yy
+            gamma = np.sqrt((1.0 + zb @ yb) / 2.0)
+            w = (zb * np.r_[1.0, -np.ones(zc.size - 1)] + yb) / (2.0 * gamma)
+            eta = np.sqrt(yy / zz)
+            block = np.outer(w[1:], w[1:]) / (1.0 + w[0]) + np.eye(zc.size - 1)
+            scaled = np.block([[w[:1, None], w[None, 1:]], [w[1:, None], block]])
+            W[layout.cone, layout.cone] = eta * scaled
+            scaled[0, 1:], scaled[1:, 0] = -w[1:], -w[1:]
+            Winv[layout.cone, layout.cone] = scaled / eta
+        return W, Winv
+
+    def _measures(self, equations, y, z, scale: float) -> tuple[float, float]:
+        """(residual of the equations, largest |z o y|) of an iterate."""
+        F, E = equations[0], equations[3]
+        residual = max(np.max(np.abs(F)) / scale, np.max(np.abs(E), initial=0.0))
+        return residual, float(np.max(np.abs(self._jordan(z, y)), initial=0.0))
+
+    def step(
+        self, t0: float, h: float, qk, pk, guess_C, duals, excluded: int | None = None
+    ) -> StepResult:
+        """One step of length h from (q_k, p_k): Mehrotra's predictor–corrector.
+
+        ``excluded``: a contact kept apart (no force: its y is 0 and its rows
+        drop out), as when the first touch of an open contact is looked for.
+        """
         s = self.tables.d.size - 1
         nx, m = s * (self.n + self.system.m), self.size
+        fixed = self._fixed(excluded)
+        e = self._identity()
         x = np.zeros(nx)
         x[: s * self.n] = np.asarray(guess_C, dtype=float)[1:].ravel()
         y = self._interior(np.asarray(duals, dtype=float), 1e-6, margin=1.0)
-        z0 = np.zeros(m)
-        F, Fx, Fy, E, Ex, Ey, Ez, p_new, C = self._equations(t0, h, qk, pk, x, y, z0)
+        y[fixed] = 0.0
+
+        def equations(x, y, z):
+            eq = list(self._equations(t0, h, qk, pk, x, y, z))
+            eq[3][fixed] = 0.0  # E: the fixed slacks stay where they are
+            return eq
+
         # E(z = 0) = -(the slacks' values); the slip speed zeta is free
-        z = self._interior(-E, 1e-6, margin=1.0)
-        e = self._identity()
-        blocks = self._blocks()
+        z = self._interior(-equations(x, y, np.zeros(m))[3], 1e-6, margin=1.0)
+        z[fixed] = e[fixed]
+        e[fixed] = 0.0
+        blocks = self._blocks() - (0 if excluded is None else 1 + int(fixed.sum() > 1))
         scale = 1.0 + float(np.max(np.abs(pk)))
+        eq = equations(x, y, z)
+        residual, complementarity = self._measures(eq, y, z, scale)
         iterations, converged = 0, False
         while iterations < MAX_ITERATIONS:
             iterations += 1
-            F, Fx, Fy, E, Ex, Ey, Ez, p_new, C = self._equations(t0, h, qk, pk, x, y, z)
-            gap = float(z @ y) / blocks
-            residual = max(np.max(np.abs(F)) / scale, np.max(np.abs(E)))
-            complementarity = float(np.max(np.abs(self._jordan(z, y))))
+            if _TRACE():
+                print(iterations, f"res {residual:.2e} comp {complementarity:.2e}")
             if residual <= RESIDUAL and complementarity <= COMPLEMENTARITY:
                 converged = True
                 break
-            K = np.zeros((nx + 2 * m, nx + 2 * m))
-            K[:nx, :nx], K[:nx, nx : nx + m] = Fx, Fy
-            K[nx : nx + m, :nx], K[nx : nx + m, nx : nx + m] = Ex, Ey
-            K[nx : nx + m, nx + m :] = Ez
-            K[nx + m :, nx : nx + m] = self._arrow(z)
-            K[nx + m :, nx + m :] = self._arrow(y)
-            zy = self._jordan(z, y)
+            if not np.isfinite(residual + complementarity):
+                break
+            gap = float(z @ y) / max(blocks, 1)
+            W, Winv = self._scaling(z, y)
+            lam = W @ z
+            K = self._newton_matrix(eq, W, Winv, lam, fixed)
+            rhs = -np.concatenate([eq[0], eq[3], self._jordan(lam, lam)])
+            rhs[nx + m :][fixed] = 0.0
+            lu = scipy.linalg.lu_factor(K, check_finite=False)
             # predictor: the affine-scaling direction (kappa = 0)
-            affine = np.linalg.solve(K, -np.concatenate([F, E, zy]))
+            affine = scipy.linalg.lu_solve(lu, rhs, check_finite=False)
             dy_a, dz_a = affine[nx : nx + m], affine[nx + m :]
             alpha = min(self._to_boundary(y, dy_a, 1.0), self._to_boundary(z, dz_a, 1.0))
-            gap_aff = float((z + alpha * dz_a) @ (y + alpha * dy_a)) / blocks
-            sigma = (gap_aff / gap) ** 3 if gap > 0 else 0.0
-            # corrector: centred towards sigma mu, the predictor's second-order term
-            r3 = zy + self._jordan(dz_a, dy_a) - sigma * gap * e
-            step = np.linalg.solve(K, -np.concatenate([F, E, r3]))
-            dx, dy, dz = step[:nx], step[nx : nx + m], step[nx + m :]
-            tau = max(0.99, 1.0 - gap)
+            gap_aff = float((z + alpha * dz_a) @ (y + alpha * dy_a)) / max(blocks, 1)
+            sigma = min(1.0, max(gap_aff, 0.0) / gap) ** 3 if gap > 0 else 0.0
+            # corrector: centred towards kappa = sigma mu (never below the tolerance's
+            # tenth: aiming at 0 ends on the cones' boundary where the contacts are
+            # degenerate), with the predictor's second-order term
+            kappa = max(sigma * gap, 0.1 * COMPLEMENTARITY)
+            rhs[nx + m :] -= self._jordan(W @ dz_a, Winv @ dy_a) - kappa * e
+            rhs[nx + m :][fixed] = 0.0
+            direction = scipy.linalg.lu_solve(lu, rhs, check_finite=False)
+            dx, dy, dz = direction[:nx], direction[nx : nx + m], direction[nx + m :]
+            tau = max(0.99, 1.0 - max(residual, complementarity) ** 2)
             alpha = min(self._to_boundary(y, dy, tau), self._to_boundary(z, dz, tau))
-            x, y, z = x + alpha * dx, y + alpha * dy, z + alpha * dz
-        if self.system.m:
-            p_new = self._projected(t0 + h, qk + C[s], p_new)
+            # backtracking (as Dojo's): halved while both measures grow
+            for _ in range(LINE_SEARCH):
+                trial = (x + alpha * dx, y + alpha * dy, z + alpha * dz)
+                eq_trial = equations(*trial)
+                measures = self._measures(eq_trial, trial[1], trial[2], scale)
+                if measures[0] <= residual or measures[1] <= complementarity:
+                    break
+                alpha /= 2
+            if _TRACE():
+                print(f"   sigma {sigma:.2e} kappa {kappa:.2e} alpha {alpha:.2e} gap {gap:.2e}", _argmin_step(self, y, dy, z, dz))
+            (x, y, z), eq, (residual, complementarity) = trial, eq_trial, measures
+        p_new, C = eq[7], eq[8]
+        if self.system.m and converged:
+            try:
+                p_new = self._projected(t0 + h, qk + C[s], p_new)
+            except ValueError:
+                converged = False
         normal = np.array([y[layout.normal] for layout in self.layout])
         tangential = np.zeros((len(self.layout), self.tangential_size))
         sticking = np.zeros(len(self.layout), dtype=bool)
@@ -389,7 +508,7 @@ class ContactStepper:
             duals=y,
             sticking=sticking,
             iterations=iterations,
-            complementarity=float(np.max(np.abs(self._jordan(z, y)))),
+            complementarity=complementarity,
             converged=converged,
         )
 
@@ -414,3 +533,15 @@ def _cone_step(v: NDArray, dv: NDArray) -> float:
         roots.append(-c / b)
     positive = [r for r in roots if r > 0]
     return min(positive) if positive else np.inf
+
+
+def _argmin_step(self, y, dy, z, dz):
+    out = []
+    for j, layout in enumerate(self.layout):
+        for name, v, dv in (("y", y, dy), ("z", z, dz)):
+            a = _orthant_step(v[layout.normal], dv[layout.normal])
+            if a < 1: out.append((j, name, "n", round(a, 4)))
+            if layout.cone is not None:
+                a = _cone_step(v[layout.cone], dv[layout.cone])
+                if a < 1: out.append((j, name, "c", round(a, 4), v[layout.cone]))
+    return out
