@@ -111,8 +111,13 @@ def cost_cases() -> list[Case]:
     chain = chains.spring_chain(20, beta=1.0)
     return [
         Case("double pendulum", dp.system, dp.q0, dp.v0, 0.01, dp.params),
-        Case("triple pendulum", triple_pendulum(), np.array([0.6, 0.3, -0.2]),
-             np.array([0.0, 0.2, 0.1]), 0.01),  # fmt: skip
+        Case(
+            "triple pendulum",
+            triple_pendulum(),
+            np.array([0.6, 0.3, -0.2]),
+            np.array([0.0, 0.2, 0.1]),
+            0.01,
+        ),  # fmt: skip
         Case("FPU chain N=20", chain.system, chain.q0, chain.v0, 0.05, chain.params),
     ]
 
@@ -476,30 +481,40 @@ def part_megno(args) -> dict:
         "cpu_ratio": best["gvi"] / best["rebound"],
     }  # fmt: skip
     g = result["gvi"]
-    print(f"\n## MEGNO against REBOUND {rebound.__version__}: star + two planets, "
-          f"{args.orbits} inner orbits (t = {t_end:.0f}), best of {args.megno_repeats}\n")
+    print(
+        f"\n## MEGNO against REBOUND {rebound.__version__}: star + two planets, "
+        f"{args.orbits} inner orbits (t = {t_end:.0f}), best of {args.megno_repeats}\n"
+    )
     header = (
-        f"{'code':34s} {'steps':>8s} {'max |dE/E|':>10s} {'final dr':>9s} {'<Y>':>9s}"
-        f" {'CPU s':>8s}"
+        f"{'code':34s} {'steps':>8s} {'max |dE/E|':>10s} {'final dr':>9s} {'<Y>':>9s} {'CPU s':>8s}"
     )
     print(header)
     print("-" * len(header))
-    print(f"{'REBOUND whfast, dt = P/' + str(round(1 / args.rebound_step)):34s}"
-          f" {reb['steps']:8d} {reb['energy_error']:10.1e}"
-          f" {result['rebound']['position_error']:9.1e} {reb['megno']:9.4f}"
-          f" {best['rebound']:8.3f}")
-    print(f"{'galerkin_vi ' + g['method'] + ', h = P/' + str(per_orbit):34s} {n_steps:8d}"
-          f" {g['energy_error']:10.1e} {g['position_error']:9.1e} {g['megno_mean']:9.4f}"
-          f" {best['gvi']:8.3f}")
-    print(f"{'  same deviations, REBOUND norm':34s} {'':8s} {'':10s} {'':9s}"
-          f" {mean_reb_norm:9.4f}")
-    print(f"{'  the same run without the tangent':34s} {n_steps:8d} {'':10s} {'':9s} {'':9s}"
-          f" {best['plain']:8.3f}")
-    print(f"{'REBOUND ias15 (reference)':34s} {ref['steps']:8d} {'':10s} {'':9s}"
-          f" {ref['megno']:9.4f} {ref['cpu_s']:8.3f}")
-    print(f"\nCPU ratio galerkin_vi / REBOUND: {result['cpu_ratio']:.1f}; "
-          f"|<Y> difference| = {abs(g['megno_mean'] - reb['megno']):.1e} "
-          f"(REBOUND norm: {abs(mean_reb_norm - reb['megno']):.1e})")
+    print(
+        f"{'REBOUND whfast, dt = P/' + str(round(1 / args.rebound_step)):34s}"
+        f" {reb['steps']:8d} {reb['energy_error']:10.1e}"
+        f" {result['rebound']['position_error']:9.1e} {reb['megno']:9.4f}"
+        f" {best['rebound']:8.3f}"
+    )
+    print(
+        f"{'galerkin_vi ' + g['method'] + ', h = P/' + str(per_orbit):34s} {n_steps:8d}"
+        f" {g['energy_error']:10.1e} {g['position_error']:9.1e} {g['megno_mean']:9.4f}"
+        f" {best['gvi']:8.3f}"
+    )
+    print(f"{'  same deviations, REBOUND norm':34s} {'':8s} {'':10s} {'':9s} {mean_reb_norm:9.4f}")
+    print(
+        f"{'  the same run without the tangent':34s} {n_steps:8d} {'':10s} {'':9s} {'':9s}"
+        f" {best['plain']:8.3f}"
+    )
+    print(
+        f"{'REBOUND ias15 (reference)':34s} {ref['steps']:8d} {'':10s} {'':9s}"
+        f" {ref['megno']:9.4f} {ref['cpu_s']:8.3f}"
+    )
+    print(
+        f"\nCPU ratio galerkin_vi / REBOUND: {result['cpu_ratio']:.1f}; "
+        f"|<Y> difference| = {abs(g['megno_mean'] - reb['megno']):.1e} "
+        f"(REBOUND norm: {abs(mean_reb_norm - reb['megno']):.1e})"
+    )
     print(f"probe over {args.probe_orbits} orbits, REBOUND: |dE/E| {probe_reb['energy_error']:.1e},"
           f" dr {probe_dr:.1e}; the largest step per degree at least as accurate in both: "
           + ", ".join(f"Gauss({c['s']}) P/{c['steps_per_orbit']} ({c['energy_error']:.1e},"
@@ -525,8 +540,10 @@ def _rebound_at_accuracy(period, t_end, ref, energy, position, gvi_cpu) -> dict 
         dr = position_error(run["x"], ref_t["x"])
         cpu = min(run["cpu_s"], _clock(lambda dt=dt: rebound_simulation(dt).integrate(
             t_end, exact_finish_time=0)))  # fmt: skip
-        print(f"  dt = P/{per_orbit:<5d} |dE/E| {run['energy_error']:.1e}  dr {dr:.1e}  "
-              f"<Y> {run['megno']:.4f}  CPU {cpu:.3f} s")
+        print(
+            f"  dt = P/{per_orbit:<5d} |dE/E| {run['energy_error']:.1e}  dr {dr:.1e}  "
+            f"<Y> {run['megno']:.4f}  CPU {cpu:.3f} s"
+        )
         if run["energy_error"] <= energy and dr <= position:
             print(f"  -> at equal accuracy galerkin_vi / REBOUND CPU: {gvi_cpu / cpu:.2f}")
             return {"steps_per_orbit": per_orbit, "energy_error": run["energy_error"],
@@ -569,17 +586,23 @@ def _plot_megno(every, var, reb_norm, dt, t_end, path: Path) -> None:
 
 # -------------------------------------------------------------------------- main
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="benchmarks/tangent.py", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        prog="benchmarks/tangent.py",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     parser.add_argument("--parts", nargs="+", default=list(PARTS), choices=PARTS)
     parser.add_argument("--seconds", type=float, default=0.1, help="length of one timed run")
     parser.add_argument("--repeats", type=int, default=7)
-    parser.add_argument("--gradient-steps", type=int, nargs="+",
-                        default=[1_000, 10_000, 100_000])
+    parser.add_argument("--gradient-steps", type=int, nargs="+", default=[1_000, 10_000, 100_000])
     parser.add_argument("--orbits", type=int, default=10_000, help="inner orbits for MEGNO")
     parser.add_argument("--probe-orbits", type=int, default=50)
-    parser.add_argument("--rebound-step", type=float, default=0.05,
-                        help="WHFast's step as a fraction of the inner period")
+    parser.add_argument(
+        "--rebound-step",
+        type=float,
+        default=0.05,
+        help="WHFast's step as a fraction of the inner period",
+    )
     parser.add_argument("--megno-repeats", type=int, default=3)
     parser.add_argument("--plot", type=Path, default=None, help="PNG of <Y>(t) (megno part)")
     parser.add_argument("--json", type=Path, default=None)

@@ -86,7 +86,7 @@ def test_the_warm_up_compiles_every_variant_and_the_problem_library_adds_none():
         loops.stage_form_loop: 4,
         loops.general_loop: 4,
         loops.linear_loop: 2,
-        loops.constrained_loop: 1,
+        loops.constrained_loop: 2,
         loops.explicit_loop: 8,
         loops.varying_mass_loop: 1,
     }

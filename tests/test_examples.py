@@ -33,13 +33,15 @@ RUNS = {
     "henon_heiles_megno.py": (["--grid", "10", "--t-final", "50"], "Lyapunov exponents"),
     "gradient_shooting.py": (["--output", str(SMOKE_OUTPUT)], "gradient evaluations"),
     "periodic_family_stability.py": (
-        ["--e-max", "0.3", "--output", str(SMOKE_OUTPUT)], "Mathieu boundary E = 0.1856"
+        ["--e-max", "0.3", "--output", str(SMOKE_OUTPUT)],
+        "Mathieu boundary E = 0.1856",
     ),
     "tennis_racket.py": (["--t-final", "10", "--output", str(SMOKE_OUTPUT)], "flips (omega_2 = 0)"),
     "heavy_top.py": (["--t-final", "1", "--output", str(SMOKE_OUTPUT)], "closed form ["),
     "pendulum_3d.py": (["--t-final", "1", "--output", str(SMOKE_OUTPUT)], "max |energy error|"),
     "chain_10.py": (
-        ["--links", "3", "--t-final", "0.5", "--output", str(SMOKE_OUTPUT)], "max joint residual"
+        ["--links", "3", "--t-final", "0.5", "--output", str(SMOKE_OUTPUT)],
+        "max joint residual",
     ),
     "die_on_table.py": (["--seconds", "0.5", "--output", str(SMOKE_OUTPUT)], "impacts; the first"),
 }

@@ -456,8 +456,9 @@ def test_streamed_chunks_carry_the_tangent_and_the_sensitivities():
     run = dict(h=0.01, n_steps=250)
     whole = integrator.integrate([0.5, 0.3], v0=[0.1, -0.2], tangent=True, sensitivity=[g], **run)
     chunks = list(
-        integrator.stream([0.5, 0.3], v0=[0.1, -0.2], chunk_steps=100, tangent=True,
-                          sensitivity=[g], **run)  # fmt: skip
+        integrator.stream(
+            [0.5, 0.3], v0=[0.1, -0.2], chunk_steps=100, tangent=True, sensitivity=[g], **run
+        )  # fmt: skip
     )
     assert [len(c) for c in chunks] == [101, 100, 50]
     tangent = np.concatenate([c.tangent for c in chunks])

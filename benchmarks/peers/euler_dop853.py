@@ -78,8 +78,15 @@ def quaternion_to_matrix(e: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _rhs(t: float, y: np.ndarray, J: np.ndarray, Jinv: np.ndarray, mg: np.ndarray,
-         rho: np.ndarray, heavy: bool) -> np.ndarray:
+def _rhs(
+    t: float,
+    y: np.ndarray,
+    J: np.ndarray,
+    Jinv: np.ndarray,
+    mg: np.ndarray,
+    rho: np.ndarray,
+    heavy: bool,
+) -> np.ndarray:
     w0, w1, w2 = y[0], y[1], y[2]
     e0, e1, e2, e3 = y[3], y[4], y[5], y[6]
     L0 = J[0, 0] * w0 + J[0, 1] * w1 + J[0, 2] * w2
@@ -162,8 +169,16 @@ def euler_dop853(
     args = (J, np.linalg.inv(J), mg, np.asarray(rho, dtype=float), bool(m != 0.0))
     _rhs(0.0, y0, *args)  # load or compile before the clock starts
     start = time.process_time()
-    sol = solve_ivp(_rhs, (0.0, float(t_final)), y0, method="DOP853", rtol=rtol, atol=atol,
-                    t_eval=t_eval, args=args)
+    sol = solve_ivp(
+        _rhs,
+        (0.0, float(t_final)),
+        y0,
+        method="DOP853",
+        rtol=rtol,
+        atol=atol,
+        t_eval=t_eval,
+        args=args,
+    )
     cpu = time.process_time() - start
     return EulerResult(
         t=sol.t,

@@ -48,17 +48,20 @@ INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast", "discrete")
 
 def available_integrators() -> tuple[str, ...]:
     """The names of :data:`INTEGRATORS` that the installed MuJoCo accepts."""
-    names = {"Euler": "mjINT_EULER", "RK4": "mjINT_RK4", "implicit": "mjINT_IMPLICIT",
-             "implicitfast": "mjINT_IMPLICITFAST", "discrete": "mjINT_DISCRETE"}
+    names = {
+        "Euler": "mjINT_EULER",
+        "RK4": "mjINT_RK4",
+        "implicit": "mjINT_IMPLICIT",
+        "implicitfast": "mjINT_IMPLICITFAST",
+        "discrete": "mjINT_DISCRETE",
+    }
     members = mujoco.mjtIntegrator.__members__
     return tuple(name for name in INTEGRATORS if names[name] in members)
 
 
 def _check_integrator(integrator: str) -> None:
     if integrator not in available_integrators():
-        raise ValueError(
-            f"integrator must be one of {available_integrators()}, got {integrator!r}"
-        )
+        raise ValueError(f"integrator must be one of {available_integrators()}, got {integrator!r}")
 
 
 def _vec(values: np.ndarray | list[float] | tuple[float, ...]) -> str:
@@ -100,8 +103,7 @@ class FreeBodyRun:
         return 1e9 * self.cpu_time / max(self.steps, 1)
 
 
-def free_body_xml(inertia: np.ndarray | list[float], mass: float, h: float,
-                  integrator: str) -> str:
+def free_body_xml(inertia: np.ndarray | list[float], mass: float, h: float, integrator: str) -> str:
     """XML of one body on a free joint, gravity off, principal moments ``inertia`` on its axes."""
     _check_integrator(integrator)
     return f"""<mujoco model="free_body">
@@ -166,11 +168,26 @@ def run_free_body(
         quats[row], omegas[row] = data.qpos[3:7], data.qvel[3:6]
         if _unstable(data) or not np.isfinite(omegas[row]).all():
             # the rows before this save are MuJoCo's last trustworthy ones
-            return FreeBodyRun(np.arange(row) * h * save_every, quats[:row], omegas[:row], cpu,
-                               row * int(save_every), False, -1,
-                               f"unstable (bad qacc) by step {row * int(save_every)}")
-    return FreeBodyRun(np.arange(rows) * h * save_every, quats, omegas, cpu,
-                       (rows - 1) * int(save_every), True, 0, "finished")
+            return FreeBodyRun(
+                np.arange(row) * h * save_every,
+                quats[:row],
+                omegas[:row],
+                cpu,
+                row * int(save_every),
+                False,
+                -1,
+                f"unstable (bad qacc) by step {row * int(save_every)}",
+            )
+    return FreeBodyRun(
+        np.arange(rows) * h * save_every,
+        quats,
+        omegas,
+        cpu,
+        (rows - 1) * int(save_every),
+        True,
+        0,
+        "finished",
+    )
 
 
 # ---------------------------------------------------------------------------------------- chain
@@ -325,8 +342,9 @@ class ChainRun:
         return float(np.max(np.abs(self.energy - self.energy[0])))
 
 
-def run_chain(spec: ChainSpec, h: float, n_steps: int, integrator: str = "RK4",
-              save_every: int = 100) -> ChainRun:
+def run_chain(
+    spec: ChainSpec, h: float, n_steps: int, integrator: str = "RK4", save_every: int = 100
+) -> ChainRun:
     """Run the hanging chain ``n_steps`` steps; energy at every ``save_every`` steps."""
     if int(save_every) < 1 or int(n_steps) < 0:
         raise ValueError("save_every must be >= 1 and n_steps >= 0")
@@ -342,8 +360,23 @@ def run_chain(spec: ChainSpec, h: float, n_steps: int, integrator: str = "RK4",
         cpu += time.process_time() - start
         energy[row], qpos[row] = _energy(model, data), data.qpos
         if _unstable(data) or not np.isfinite(energy[row]):
-            return ChainRun(np.arange(row) * h * save_every, energy[:row], qpos[:row], cpu,
-                            row * int(save_every), False, -1,
-                            f"unstable (bad qacc) by step {row * int(save_every)}")
-    return ChainRun(np.arange(rows) * h * save_every, energy, qpos, cpu,
-                    (rows - 1) * int(save_every), True, 0, "finished")
+            return ChainRun(
+                np.arange(row) * h * save_every,
+                energy[:row],
+                qpos[:row],
+                cpu,
+                row * int(save_every),
+                False,
+                -1,
+                f"unstable (bad qacc) by step {row * int(save_every)}",
+            )
+    return ChainRun(
+        np.arange(rows) * h * save_every,
+        energy,
+        qpos,
+        cpu,
+        (rows - 1) * int(save_every),
+        True,
+        0,
+        "finished",
+    )

@@ -38,6 +38,7 @@ from .common import (
     save_row,
     wrap_angles,
 )
+from .constrained_band import make_band_work, project_hidden_band, solve_constrained_band
 from .general import assemble_gradient, assemble_newton, make_work
 from .linalg import CONTINUE, CONVERGED, lu_factor_inplace, lu_solve_inplace, newton_status
 from .point import (
@@ -262,6 +263,7 @@ def constrained_loop(
     pattern,
     periodic,
     m,
+    band,
     q0,
     p0,
     v0,
@@ -287,13 +289,21 @@ def constrained_loop(
 ):
     """Run ``n_steps`` constrained steps from a consistent (q0, p0).
 
-    Same contract as :func:`.general_loop`; ``m`` is the number of constraints.
+    Same contract as :func:`.general_loop`; ``m`` is the number of constraints,
+    ``band`` None (dense linear algebra) or the band order of
+    :mod:`.constrained_band` (a compiled switch).
     """
     n = q0.shape[0]
     s1 = d.shape[0]
     s = s1 - 1
     work = make_work(s, n, traits, pattern)
-    cw = make_constraint_work(s, n, m)
+    # the switch ``band`` leaves one of these branches (numba prunes the other)
+    if band is None:
+        cw = make_constraint_work(s, n, m)
+        bw = None
+    else:
+        cw = make_constraint_work(0, n, m)  # the point values' work only
+        bw = make_band_work(s, n, m, band)
     Q, V, Lq, Lv, Lqq, Lqv, Lvv, G, K, R, piv, Fv = work
     lam = np.zeros((s, m))
     mu = np.zeros(m)
@@ -318,9 +328,16 @@ def constrained_loop(
         if k > 0:
             extrapolate(C, C_prev, E)
             extrapolate_impulses(lam, mu, b, E, multipliers)
-        status, its, increment, residual = solve_constrained_stages(
-            fn, tk, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, maxiter, work, cw, traits, pattern
-        )
+        if band is None:
+            status, its, increment, residual = solve_constrained_stages(
+                fn, tk, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, maxiter, work, cw, traits,
+                pattern,
+            )  # fmt: skip
+        else:
+            status, its, increment, residual = solve_constrained_band(
+                fn, tk, h, qk, C, lam, pk, prm, b, c, Phi, D, d, tol, maxiter, work, cw, bw,
+                traits, band, k > 0,
+            )  # fmt: skip
         slot = k // save_every
         if its > iterations_out[slot]:
             iterations_out[slot] = its
@@ -334,9 +351,15 @@ def constrained_loop(
             for a in range(n):
                 vk[a] = V[a]
                 Q[a] = qk[a] + C[s, a]
-            if not project_hidden(
-                fn, tk + h, Q, p_tilde, vk, mu, prm, tol, maxiter, work, cw, p_next
-            ):
+            if band is None:
+                projected = project_hidden(
+                    fn, tk + h, Q, p_tilde, vk, mu, prm, tol, maxiter, work, cw, p_next
+                )
+            else:
+                projected = project_hidden_band(
+                    fn, tk + h, Q, p_tilde, vk, mu, prm, tol, maxiter, work, cw, bw, band, p_next
+                )
+            if not projected:
                 status = STATUS_NEWTON_FAILED
             for a in range(n):
                 if not abs(p_next[a]) < 1e300:

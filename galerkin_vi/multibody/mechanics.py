@@ -200,14 +200,8 @@ def from_lagranges_method(
     >>> system.n, system.m
     (4, 1)
     """
-    model = embedded_model(lm, frame, quaternions, direction_cosines)
-    return LagrangianSystem(
-        model.L,
-        q=list(model.q),
-        t=t,
-        params=params,
-        constraints=model.constraints,
-        forces=model.forces,
+    return LagrangianSystem.from_lagranges_method(
+        lm, params, t, frame, quaternions=quaternions, direction_cosines=direction_cosines
     )
 
 

@@ -296,8 +296,19 @@ def _euler_poinsot(moments: tuple[float, ...], omega0: tuple[float, ...]) -> _Eu
     m_sq = float((J * w) @ (J * w))
     lo, mid, hi = (int(i) for i in np.argsort(J, kind="stable"))
     if m_sq == 0.0 or J[lo] == J[hi]:
-        return _EulerPoinsot((lo, mid, hi), (0.0, 0.0, 0.0), 0.0, 0.0, 1.0, 0.0, two_e,
-                             float(np.sqrt(m_sq)), moments, omega0)
+        return _EulerPoinsot(
+            (lo, mid, hi),
+            (0.0, 0.0, 0.0),
+            0.0,
+            0.0,
+            1.0,
+            0.0,
+            two_e,
+            float(np.sqrt(m_sq)),
+            moments,
+            omega0,
+        )
+
     def excess(k: int) -> float:
         # M^2 - 2 E J_k = sum_i J_i w_i^2 (J_i - J_k) without the term i = k, which cancels:
         # accurate near the rotation about the axis k
@@ -339,9 +350,18 @@ def _euler_poinsot(moments: tuple[float, ...], omega0: tuple[float, ...]) -> _Eu
         cos_phi = w[a] / amp_a if amp_a > 0 else 0.0
         sin_phi = w[b] / amp_b if amp_b != 0 else 0.0
         u0 = _elliptic_argument(sin_phi, cos_phi, m, complementary)
-    return _EulerPoinsot((a, b, c), (amp_a, amp_b, amp_c), float(rate), float(m),
-                         float(complementary), u0, two_e,
-                         float(np.sqrt(m_sq)), moments, omega0)
+    return _EulerPoinsot(
+        (a, b, c),
+        (amp_a, amp_b, amp_c),
+        float(rate),
+        float(m),
+        float(complementary),
+        u0,
+        two_e,
+        float(np.sqrt(m_sq)),
+        moments,
+        omega0,
+    )
 
 
 def _free_body(inertia: ArrayLike, omega0: ArrayLike) -> _EulerPoinsot:
@@ -573,14 +593,16 @@ def free_body_rotation(
     m_hat0 = moments * solution.omega(np.array(0.0)) / solution.momentum
     m_hat = moments * solution.omega(times) / solution.momentum
     u = solution.rate * times + solution.u0
-    psi = (_precession_primitive(solution, u) - _precession_primitive(solution, np.array(
-        solution.u0))) / solution.rate
+    psi = (
+        _precession_primitive(solution, u) - _precession_primitive(solution, np.array(solution.u0))
+    ) / solution.rate
     return (
         rotation0
         @ _aligning_rotation(n, m_hat0 / np.linalg.norm(m_hat0))
         @ _axis_rotation(n, psi)
-        @ np.swapaxes(_aligning_rotation(n, m_hat / np.linalg.norm(m_hat, axis=-1,
-                                                                   keepdims=True)), -1, -2)
+        @ np.swapaxes(
+            _aligning_rotation(n, m_hat / np.linalg.norm(m_hat, axis=-1, keepdims=True)), -1, -2
+        )
     )
 
 
@@ -635,8 +657,7 @@ class LagrangeTopNutation:
         r""":math:`\theta(t) = \arccos(u_1 + (u_2 - u_1)\,\mathrm{sn}^2(\lambda t + w_0 | k^2))`."""
         times = _times(t)
         u1, u2, _ = self.roots
-        sn, _, _ = _jacobi(self.rate * times + self.phase, self.modulus,
-                           self.complementary_modulus)
+        sn, _, _ = _jacobi(self.rate * times + self.phase, self.modulus, self.complementary_modulus)
         return np.arccos(np.clip(u1 + (u2 - u1) * sn**2, -1.0, 1.0))
 
 
@@ -747,16 +768,21 @@ def lagrange_top_nutation(
     if I1 <= 0 or I3 <= 0:
         raise ValueError(f"the moments I1, I3 must be positive, got {I1}, {I3}")
     if m * g * l <= 0:
-        raise ValueError(f"m g l must be positive (the centre of mass above the pivot when "
-                         f"theta < pi/2), got m={m}, g={g}, l={l}")
+        raise ValueError(
+            f"m g l must be positive (the centre of mass above the pivot when "
+            f"theta < pi/2), got m={m}, g={g}, l={l}"
+        )
     if not 0.0 < theta0 < np.pi:
-        raise ValueError(f"theta0 must lie in (0, pi), the Euler angles being singular on "
-                         f"the vertical; got {theta0}")
+        raise ValueError(
+            f"theta0 must lie in (0, pi), the Euler angles being singular on "
+            f"the vertical; got {theta0}"
+        )
     u0, s0 = np.cos(theta0), np.sin(theta0)
     p_psi = I3 * (psi_dot0 + phi_dot0 * u0)
     p_phi = I1 * phi_dot0 * s0**2 + p_psi * u0
-    energy = 0.5 * I1 * (theta_dot0**2 + (phi_dot0 * s0) ** 2) + p_psi**2 / (2 * I3) \
-        + m * g * l * u0
+    energy = (
+        0.5 * I1 * (theta_dot0**2 + (phi_dot0 * s0) ** 2) + p_psi**2 / (2 * I3) + m * g * l * u0
+    )
     a, beta = p_psi / I1, 2.0 * m * g * l / I1
     # f(u0 + x) = f0 + f1 x + f2 x^2 + beta x^3 with P = alpha - beta u0, w = b - a u0
     big_p = theta_dot0**2 + (phi_dot0 * s0) ** 2
@@ -827,8 +853,9 @@ def _inertia_tensor(inertia: ArrayLike) -> NDArray[np.float64]:
     if tensor.shape == (3,):
         tensor = np.diag(tensor)
     if tensor.shape != (3, 3) or not np.allclose(tensor, tensor.T, rtol=1e-12, atol=0.0):
-        raise ValueError("inertia must be 3 principal moments or a symmetric 3x3 tensor, "
-                         f"got {inertia!r}")
+        raise ValueError(
+            f"inertia must be 3 principal moments or a symmetric 3x3 tensor, got {inertia!r}"
+        )
     if np.linalg.eigvalsh(tensor)[0] <= 0:
         raise ValueError("inertia must be positive definite")
     return tensor
@@ -842,8 +869,10 @@ def _ball_joint_setup(
     r = _vector3(r_cm, "r_cm")
     length = -r[2]
     if length <= 0 or np.hypot(r[0], r[1]) > 1e-12 * length:
-        raise ValueError(f"r_cm must be (0, 0, -l) with l > 0 (the centre of mass below the "
-                         f"joint at rest), got {r_cm!r}")
+        raise ValueError(
+            f"r_cm must be (0, 0, -l) with l > 0 (the centre of mass below the "
+            f"joint at rest), got {r_cm!r}"
+        )
     if mass <= 0 or g <= 0:
         raise ValueError(f"mass and g must be positive, got mass={mass}, g={g}")
     pivot = tensor + mass * (r @ r * np.eye(3) - np.outer(r, r))

@@ -28,6 +28,7 @@ from ..method.galerkin import Galerkin
 from ..method.stage_form import separable_tables
 from ..method.velocity_stages import varying_mass_tables
 from ..model.system import LagrangianSystem
+from .constrained_band import constrained_band
 
 __all__ = [
     "LOOP_PATHS",
@@ -87,6 +88,9 @@ class RunSpec:
         The stage form starts each step with the constant-mass iteration.
     legendre : PointLegendre or None
         The compiled Legendre transform (:mod:`galerkin_vi.run.legendre`).
+    band : tuple or None
+        The constrained loop's band order (:mod:`galerkin_vi.run.constrained_band`),
+        or None: dense linear algebra.
     """
 
     system: LagrangianSystem
@@ -101,6 +105,7 @@ class RunSpec:
     couplings: tuple | None
     constant_mass: bool
     legendre: Any
+    band: tuple | None = None
 
     @property
     def order(self) -> int:
@@ -135,7 +140,8 @@ class RunSpec:
         if path == "linear":
             return loops.linear_loop, self.model, method
         if path == "constrained":
-            return loops.constrained_loop, (*self.model, self.system.m), (*method, *newton)
+            before = (*self.model, self.system.m, self.band)
+            return loops.constrained_loop, before, (*method, *newton)
         if path == "newton":
             return loops.general_loop, (*self.model, self.couplings), (*method, *newton)
         raise ValueError(f"the {path!r} loop is not called through loop_parts")
@@ -214,9 +220,10 @@ def compiled_run_spec(
         pattern = summary.pattern if summary.banded else None
         legendre = PointLegendre(hessian.address, system.n, pattern)
     couplings = (summary.has_Lqv, summary.has_fv)
+    band = constrained_band(system, method.degree) if path == "constrained" else None
     return RunSpec(
         system, method, path, "numba", tol, maxiter, model=model,
         diagonal_mass=bool(summary.diagonal_mass), autonomous=bool(summary.autonomous),
         couplings=couplings if any(couplings) else None, constant_mass=constant_mass,
-        legendre=legendre,
+        legendre=legendre, band=band,
     )  # fmt: skip

@@ -71,6 +71,20 @@ def _runs():
     damped_chain = system(kinetic - chain_v, qs, vs, forces=[-w / 10 for w in vs])
     gyroscopic = system((1 + q**2) * v**2 / 2 + sp.cos(q), [q], [v])
     rod = system((vx**2 + vy**2) / 2 - y, [x, y], [vx, vy], constraints=[(x**2 + y**2 - 1) / 2])
+    # a planar chain of point masses on rods: the smallest constrained step stored banded
+    xs, ys = sp.symbols(f"x0:{n}"), sp.symbols(f"y0:{n}")
+    xvs, yvs = sp.symbols(f"xv0:{n}"), sp.symbols(f"yv0:{n}")
+    links = [(xs[0], ys[0])] + [(xs[i] - xs[i - 1], ys[i] - ys[i - 1]) for i in range(1, n)]
+    rods = system(
+        sum(a**2 + b**2 for a, b in zip(xvs, yvs, strict=True)) / 2 - sum(ys),
+        [c for pair in zip(xs, ys, strict=True) for c in pair],
+        [c for pair in zip(xvs, yvs, strict=True) for c in pair],
+        constraints=[(a**2 + b**2 - 1) / 2 for a, b in links],
+    )
+    rods0 = (
+        [c for i in range(n) for c in (0.0, -1.0 - i)],
+        [c for i in range(n) for c in (0.1, 0.0)],
+    )
     timed_pendulum = system(v**2 / 2 + (1 + driven) * sp.cos(q), [q], [v], t=t)
     timed_quartic = system(v**2 / 2 - q**4 / 4 + driven * q, [q], [v], t=t)
     timed_angles = system(full_mass + (1 + driven) * sp.cos(x), [x, y], [vx, vy], t=t)
@@ -89,6 +103,7 @@ def _runs():
         ("linear", coupled, g2, True, *two),
         ("linear, banded", linear_chain, g2, True, *chain0),
         ("constrained", rod, g2, True, [0.6, -0.8], [0.8, 0.6]),
+        ("constrained, banded", rods, g2, True, *rods0),
         ("explicit", pendulum, g1, True, *one),
         ("explicit, no angles", quartic, g1, True, *one),
         ("explicit, full M", coupled_angles, g1, True, *two),
@@ -120,6 +135,7 @@ RUN_SECONDS = (
     15.0,
     17.0,
     26.0,
+    30.0,
     3.0,
     1.3,
     3.3,
