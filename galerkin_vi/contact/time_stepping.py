@@ -57,14 +57,23 @@ __all__ = ["ContactForces", "ContactStep", "ContactStepper", "StepResult"]
 
 #: interior-point iterations per step at most
 MAX_ITERATIONS = 50
-#: complementarity z . y / pairs at which a step is solved (the issue's bound: 1e-10)
-COMPLEMENTARITY = 1e-12
+#: a block's duality gap z_b . y_b at which a step is solved, relative to the scales of the
+#: forces and the coordinates (the issue's bound: 1e-10)
+COMPLEMENTARITY = 1e-10
+#: a cone's z_b . y_b at which it is solved relative to |z_b| |y_b| (a sliding contact:
+#: force and slip on opposite edges, orthogonal in R^3)
+ORTHOGONALITY = 1e-11
+#: a cone's Jordan determinant relative to its scalar squared below which the
+#: Nesterov-Todd scaling of its block is not formed (its rows stay unscaled)
+DEGENERATE = 1e-26
 #: relative residual of the stage and slack equations at which a step is solved
 RESIDUAL = 1e-12
+#: the fraction of the way to the cones' boundary a step goes at most (a fixed one: Dojo's
+#: 1 - max(residual, complementarity)^2 rounds to 1 at these tolerances and lands the
+#: iterates on the boundary, where the Nesterov-Todd scaling cannot be formed)
+FRACTION_TO_BOUNDARY = 0.995
 #: halvings of a step at most in the line search
 LINE_SEARCH = 10
-import os
-_TRACE = lambda: os.environ.get('GVI_TRACE')
 
 
 @dataclass(frozen=True)
@@ -300,8 +309,13 @@ class ContactStepper:
                 e[layout.cone.start + 1 : layout.cone.stop] = 0.0
         return e
 
-    def _blocks(self) -> int:
-        return len(self.layout) + sum(layout.cone is not None for layout in self.layout)
+    def _blocks(self, fixed: NDArray[np.bool_]) -> int:
+        """The number of blocks (gaps and cones) in the problem, those kept apart left out."""
+        count = 0
+        for layout in self.layout:
+            count += not fixed[layout.normal]
+            count += layout.cone is not None and not fixed[layout.cone.start]
+        return int(count)
 
     def _to_boundary(self, v, dv, tau: float) -> float:
         """Largest alpha <= 1 keeping v + alpha dv inside every orthant and cone, by tau."""
@@ -338,19 +352,19 @@ class ContactStepper:
                 fixed[layout.cone] = True
         return fixed
 
-    def _newton_matrix(self, equations, W, Winv, lam, fixed) -> NDArray[np.float64]:
-        r"""The Jacobian of (stage equations, slacks' definitions, :math:`\lambda \circ
-        \lambda`) in (x, y, z), :math:`\lambda = W z = W^{-1} y` (:meth:`_scaling`);
-        the rows of a contact kept apart say dy = dz = 0 (its y stays 0)."""
+    def _newton_matrix(self, equations, P, Q, z, y, fixed) -> NDArray[np.float64]:
+        r"""The Jacobian of (stage equations, slacks' definitions, :math:`u \circ v`) in
+        (x, y, z), :math:`u = P z`, :math:`v = Q y` (:meth:`_scaling`): the
+        complementarity rows are :math:`u \circ (Q\,dy) + v \circ (P\,dz)`; the rows
+        of a contact kept apart say dy = dz = 0 (its y stays 0)."""
         F, Fx, Fy, E, Ex, Ey, Ez = equations[:7]
         nx, m = Fx.shape[0], self.size
         K = np.zeros((nx + 2 * m, nx + 2 * m))
         K[:nx, :nx], K[:nx, nx : nx + m] = Fx, Fy
         K[nx : nx + m, :nx], K[nx : nx + m, nx : nx + m] = Ex, Ey
         K[nx : nx + m, nx + m :] = Ez
-        L = self._arrow(lam)
-        K[nx + m :, nx : nx + m] = L @ Winv
-        K[nx + m :, nx + m :] = L @ W
+        K[nx + m :, nx : nx + m] = self._arrow(P @ z) @ Q
+        K[nx + m :, nx + m :] = self._arrow(Q @ y) @ P
         rows = nx + np.flatnonzero(fixed)
         K[rows] = 0.0
         K[rows, rows + m] = 1.0  # dz = 0
@@ -358,57 +372,66 @@ class ContactStepper:
         K[rows + m, rows] = 1.0  # dy = 0
         return K
 
-    def _scaling(self, z, y) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        r"""The Nesterov–Todd scaling W (block diagonal) of the slacks z and duals y.
+    def _scaling(self, z, y, fixed) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        r"""The block-diagonal scalings (P, Q) of the slacks z and duals y.
 
-        W z = W^{-1} y = :math:`\lambda`. On a gap, :math:`w = \sqrt{y / z}`; on a
-        cone, with :math:`J = \operatorname{diag}(1, -1, \dots)`,
-        :math:`\bar z = z / \sqrt{z^{\mathsf T} J z}`, :math:`\bar y` likewise,
-        :math:`\gamma = \sqrt{(1 + \bar z^{\mathsf T} \bar y) / 2}`,
-        :math:`w = (J \bar z + \bar y) / (2\gamma)`,
-        :math:`\eta = (y^{\mathsf T} J y / z^{\mathsf T} J z)^{1/4}`,
-
-        .. math::
-
-            W = \eta \begin{pmatrix} w_0 & w_1^{\mathsf T} \\
-                w_1 & I + w_1 w_1^{\mathsf T} / (1 + w_0) \end{pmatrix}
-
-        (Vandenberghe, *The CVXOPT linear and quadratic cone program solvers*,
-        2010). Newton's equation for :math:`\lambda \circ \lambda = \kappa e` in
-        these scaled variables keeps the iterates well inside the cones where
-        the unscaled :math:`z \circ y` jams against a cone's boundary (a
-        sliding contact). Returns (W, W^{-1}).
+        Nesterov–Todd where it can be formed: P = W, Q = W^{-1} with
+        :math:`W z = W^{-1} y = \lambda` (:func:`_nesterov_todd`); on a gap
+        :math:`w = \sqrt{y / z}`. Newton's equation for :math:`\lambda \circ
+        \lambda = \kappa e` keeps the iterates well inside the cones where the
+        unscaled :math:`z \circ y` jams against a cone's boundary (a sliding
+        contact). Where a block is on its boundary to round-off (its scaling
+        would overflow) and for a contact kept apart, P = Q = I: the unscaled
+        rows :math:`z \circ dy + y \circ dz`.
         """
         m = self.size
-        W, Winv = np.eye(m), np.eye(m)
-        if os.environ.get("GVI_NONT"):
-            return np.diag(np.sqrt(y / z)), np.diag(np.sqrt(z / y))
+        P, Q = np.eye(m), np.eye(m)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            for layout in self.layout:
+                i = layout.normal
+                if not fixed[i]:
+                    w = np.sqrt(y[i] / z[i])
+                    if 0.0 < w < np.inf and 1.0 / w < np.inf:
+                        P[i, i], Q[i, i] = w, 1.0 / w
+                if layout.cone is not None and not fixed[layout.cone.start]:
+                    block = _nesterov_todd(z[layout.cone], y[layout.cone])
+                    if block is not None:
+                        P[layout.cone, layout.cone], Q[layout.cone, layout.cone] = block
+        return P, Q
+
+    def _block_gaps(self, z, y, fixed) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        r"""Per block b (gap or cone, those kept apart left out): the duality gap
+        :math:`z_b \cdot y_b` (the scalar part of :math:`z_b \circ y_b`, zero in the
+        cones exactly when :math:`z_b \circ y_b = 0`) and, on a cone,
+        :math:`|z_b|\,|y_b|` (zero on a gap)."""
+        gaps, sizes = [], []
         for layout in self.layout:
             i = layout.normal
-            if y[i] > 0.0:  # a contact kept apart (y = 0) keeps W = 1: its rows are fixed
-                W[i, i] = np.sqrt(y[i] / z[i])
-                Winv[i, i] = 1.0 / W[i, i]
-            if layout.cone is None or y[layout.cone][0] <= 0.0:
-                continue
-            zc, yc = z[layout.cone], y[layout.cone]
-            zz = np.sqrt(max(zc[0] ** 2 - zc[1:] @ zc[1:], 1e-300))
-            yy = np.sqrt(max(yc[0] ** 2 - yc[1:] @ yc[1:], 1e-300))
-            zb, yb = zc / zz, yc / yy
-            gamma = np.sqrt((1.0 + zb @ yb) / 2.0)
-            w = (zb * np.r_[1.0, -np.ones(zc.size - 1)] + yb) / (2.0 * gamma)
-            eta = np.sqrt(yy / zz)
-            block = np.outer(w[1:], w[1:]) / (1.0 + w[0]) + np.eye(zc.size - 1)
-            scaled = np.block([[w[:1, None], w[None, 1:]], [w[1:, None], block]])
-            W[layout.cone, layout.cone] = eta * scaled
-            scaled[0, 1:], scaled[1:, 0] = -w[1:], -w[1:]
-            Winv[layout.cone, layout.cone] = scaled / eta
-        return W, Winv
+            if not fixed[i]:
+                gaps.append(z[i] * y[i])
+                sizes.append(0.0)
+            if layout.cone is not None and not fixed[layout.cone.start]:
+                zc, yc = z[layout.cone], y[layout.cone]
+                gaps.append(zc @ yc)
+                sizes.append(np.linalg.norm(zc) * np.linalg.norm(yc))
+        return np.array(gaps), np.array(sizes)
 
-    def _measures(self, equations, y, z, scale: float) -> tuple[float, float]:
-        """(residual of the equations, largest |z o y|) of an iterate."""
+    def _measures(self, equations, y, z, fixed, scale: float, tolerance: float):
+        r"""(residual of the equations, complementarity relative to its tolerance,
+        largest block duality gap) of an iterate.
+
+        A block is solved when :math:`z_b \cdot y_b \le` ``tolerance`` (the gaps'
+        and forces' scales) or, on a cone, :math:`z_b \cdot y_b \le \epsilon
+        |z_b|\,|y_b|` (force and slip orthogonal: a sliding contact, whose
+        vector part of :math:`z_b \circ y_b` falls only as the square root of
+        the gap).
+        """
         F, E = equations[0], equations[3]
         residual = max(np.max(np.abs(F)) / scale, np.max(np.abs(E), initial=0.0))
-        return residual, float(np.max(np.abs(self._jordan(z, y)), initial=0.0))
+        gaps, sizes = self._block_gaps(z, y, fixed)
+        bound = np.maximum(tolerance, ORTHOGONALITY * sizes)
+        relative = float(np.max(gaps / bound, initial=0.0))
+        return residual, relative, float(np.max(gaps, initial=0.0))
 
     def step(
         self, t0: float, h: float, qk, pk, guess_C, duals, excluded: int | None = None
@@ -417,6 +440,7 @@ class ContactStepper:
 
         ``excluded``: a contact kept apart (no force: its y is 0 and its rows
         drop out), as when the first touch of an open contact is looked for.
+        ``duals`` None starts from the cones' centres (the Jordan identity).
         """
         s = self.tables.d.size - 1
         nx, m = s * (self.n + self.system.m), self.size
@@ -424,7 +448,8 @@ class ContactStepper:
         e = self._identity()
         x = np.zeros(nx)
         x[: s * self.n] = np.asarray(guess_C, dtype=float)[1:].ravel()
-        y = self._interior(np.asarray(duals, dtype=float), 1e-6, margin=1.0)
+        start = e if duals is None else np.asarray(duals, dtype=float)
+        y = self._interior(start, 1e-6, margin=1.0)
         y[fixed] = 0.0
 
         def equations(x, y, z):
@@ -432,58 +457,69 @@ class ContactStepper:
             eq[3][fixed] = 0.0  # E: the fixed slacks stay where they are
             return eq
 
-        # E(z = 0) = -(the slacks' values); the slip speed zeta is free
-        z = self._interior(-equations(x, y, np.zeros(m))[3], 1e-6, margin=1.0)
+        if duals is None:  # both at the Jordan identity: the centre of the orthants and cones
+            z = y.copy()
+        else:  # E(z = 0) = -(the slacks' values); the slip speed zeta is free
+            z = self._interior(-equations(x, y, np.zeros(m))[3], 1e-6, margin=1.0)
         z[fixed] = e[fixed]
         e[fixed] = 0.0
-        blocks = self._blocks() - (0 if excluded is None else 1 + int(fixed.sum() > 1))
+        blocks = max(self._blocks(fixed), 1)
         scale = 1.0 + float(np.max(np.abs(pk)))
+        # a gap of COMPLEMENTARITY relative to the coordinates, at the forces' scale
+        length = max(1.0, float(np.max(np.abs(qk))))
         eq = equations(x, y, z)
-        residual, complementarity = self._measures(eq, y, z, scale)
+        force = max(1.0, float(np.max(np.abs(y))))
+        residual, unsolved, complementarity = self._measures(
+            eq, y, z, fixed, scale, COMPLEMENTARITY * force * length
+        )
         iterations, converged = 0, False
         while iterations < MAX_ITERATIONS:
             iterations += 1
-            if _TRACE():
-                print(iterations, f"res {residual:.2e} comp {complementarity:.2e}")
-            if residual <= RESIDUAL and complementarity <= COMPLEMENTARITY:
+            if residual <= RESIDUAL and unsolved <= 1.0:
                 converged = True
                 break
-            if not np.isfinite(residual + complementarity):
+            if not np.isfinite(residual + unsolved):
                 break
-            gap = float(z @ y) / max(blocks, 1)
-            W, Winv = self._scaling(z, y)
-            lam = W @ z
-            K = self._newton_matrix(eq, W, Winv, lam, fixed)
-            rhs = -np.concatenate([eq[0], eq[3], self._jordan(lam, lam)])
+            tolerance = COMPLEMENTARITY * force * length
+            gap = float(z @ y) / blocks
+            P, Q = self._scaling(z, y, fixed)
+            K = self._newton_matrix(eq, P, Q, z, y, fixed)
+            u, v = P @ z, Q @ y
+            rhs = -np.concatenate([eq[0], eq[3], self._jordan(u, v)])
             rhs[nx + m :][fixed] = 0.0
             lu = scipy.linalg.lu_factor(K, check_finite=False)
             # predictor: the affine-scaling direction (kappa = 0)
             affine = scipy.linalg.lu_solve(lu, rhs, check_finite=False)
+            if not np.all(np.isfinite(affine)):
+                break
             dy_a, dz_a = affine[nx : nx + m], affine[nx + m :]
             alpha = min(self._to_boundary(y, dy_a, 1.0), self._to_boundary(z, dz_a, 1.0))
-            gap_aff = float((z + alpha * dz_a) @ (y + alpha * dy_a)) / max(blocks, 1)
+            gap_aff = float((z + alpha * dz_a) @ (y + alpha * dy_a)) / blocks
             sigma = min(1.0, max(gap_aff, 0.0) / gap) ** 3 if gap > 0 else 0.0
             # corrector: centred towards kappa = sigma mu (never below the tolerance's
             # tenth: aiming at 0 ends on the cones' boundary where the contacts are
             # degenerate), with the predictor's second-order term
-            kappa = max(sigma * gap, 0.1 * COMPLEMENTARITY)
-            rhs[nx + m :] -= self._jordan(W @ dz_a, Winv @ dy_a) - kappa * e
+            kappa = max(sigma * gap, 0.1 * tolerance)
+            rhs[nx + m :] -= self._jordan(P @ dz_a, Q @ dy_a) - kappa * e
             rhs[nx + m :][fixed] = 0.0
             direction = scipy.linalg.lu_solve(lu, rhs, check_finite=False)
+            if not np.all(np.isfinite(direction)):
+                break
             dx, dy, dz = direction[:nx], direction[nx : nx + m], direction[nx + m :]
-            tau = max(0.99, 1.0 - max(residual, complementarity) ** 2)
+            tau = FRACTION_TO_BOUNDARY
             alpha = min(self._to_boundary(y, dy, tau), self._to_boundary(z, dz, tau))
             # backtracking (as Dojo's): halved while both measures grow
             for _ in range(LINE_SEARCH):
                 trial = (x + alpha * dx, y + alpha * dy, z + alpha * dz)
                 eq_trial = equations(*trial)
-                measures = self._measures(eq_trial, trial[1], trial[2], scale)
-                if measures[0] <= residual or measures[1] <= complementarity:
+                measures = self._measures(eq_trial, trial[1], trial[2], fixed, scale, tolerance)
+                if measures[0] <= residual or measures[1] <= unsolved:
                     break
                 alpha /= 2
-            if _TRACE():
-                print(f"   sigma {sigma:.2e} kappa {kappa:.2e} alpha {alpha:.2e} gap {gap:.2e}", _argmin_step(self, y, dy, z, dz))
-            (x, y, z), eq, (residual, complementarity) = trial, eq_trial, measures
+            if not alpha > 1e-12:
+                break  # stalled at a boundary: the caller starts the step afresh
+            (x, y, z), eq, (residual, unsolved, complementarity) = trial, eq_trial, measures
+            force = max(1.0, float(np.max(np.abs(y))))
         p_new, C = eq[7], eq[8]
         if self.system.m and converged:
             try:
@@ -522,7 +558,8 @@ def _cone_step(v: NDArray, dv: NDArray) -> float:
     # (v0 + a dv0)^2 - |v1 + a dv1|^2 = 0 and v0 + a dv0 = 0: the smallest positive root
     a = dv[0] ** 2 - dv[1:] @ dv[1:]
     b = 2 * (v[0] * dv[0] - v[1:] @ dv[1:])
-    c = v[0] ** 2 - v[1:] @ v[1:]
+    size = np.linalg.norm(v[1:])
+    c = (v[0] - size) * (v[0] + size)
     roots = [-v[0] / dv[0]] if dv[0] < 0 else []
     if abs(a) > 1e-300:
         disc = b * b - 4 * a * c
@@ -535,13 +572,46 @@ def _cone_step(v: NDArray, dv: NDArray) -> float:
     return min(positive) if positive else np.inf
 
 
-def _argmin_step(self, y, dy, z, dz):
-    out = []
-    for j, layout in enumerate(self.layout):
-        for name, v, dv in (("y", y, dy), ("z", z, dz)):
-            a = _orthant_step(v[layout.normal], dv[layout.normal])
-            if a < 1: out.append((j, name, "n", round(a, 4)))
-            if layout.cone is not None:
-                a = _cone_step(v[layout.cone], dv[layout.cone])
-                if a < 1: out.append((j, name, "c", round(a, 4), v[layout.cone]))
-    return out
+def _jordan_norm(v: NDArray) -> float:
+    r""":math:`\sqrt{v_0^2 - |v_1|^2}` as :math:`\sqrt{(v_0 - |v_1|)(v_0 + |v_1|)}`, free of
+    the cancellation of the squares near the cone's boundary (as CVXOPT's ``jnrm2``)."""
+    size = float(np.linalg.norm(v[1:]))
+    return float(np.sqrt(max((v[0] - size) * (v[0] + size), 0.0)))
+
+
+def _nesterov_todd(z: NDArray, y: NDArray) -> tuple[NDArray, NDArray] | None:
+    r"""The Nesterov–Todd scaling (W, W^{-1}) of a cone's slack z and dual y, or None
+    where it cannot be formed (z or y on the boundary to round-off).
+
+    With :math:`J = \operatorname{diag}(1, -1, \dots)`, the Jordan norms
+    :math:`\|z\|_J = \sqrt{z^{\mathsf T} J z}` (:func:`_jordan_norm`),
+    :math:`\bar z = z / \|z\|_J`, :math:`\bar y = y / \|y\|_J`,
+    :math:`\gamma = \sqrt{(1 + \bar z^{\mathsf T} \bar y) / 2}`,
+    :math:`w = (J \bar z + \bar y) / (2\gamma)`,
+    :math:`\eta = \sqrt{\|y\|_J / \|z\|_J}`,
+
+    .. math::
+
+        W = \eta \begin{pmatrix} w_0 & w_1^{\mathsf T} \\
+            w_1 & I + w_1 w_1^{\mathsf T} / (1 + w_0) \end{pmatrix},
+        \qquad W z = W^{-1} y
+
+    (Vandenberghe, *The CVXOPT linear and quadratic cone program solvers*,
+    2010, §4); :math:`W^{-1}` is W with :math:`w_1 \to -w_1`, :math:`\eta \to 1/\eta`.
+    """
+    zz, yy = _jordan_norm(z), _jordan_norm(y)
+    limit = np.sqrt(DEGENERATE)
+    if not (zz > limit * z[0] and yy > limit * y[0]):
+        return None
+    zb, yb = z / zz, y / yy
+    gamma = np.sqrt((1.0 + zb @ yb) / 2.0)
+    w = (yb + np.concatenate([zb[:1], -zb[1:]])) / (2.0 * gamma)
+    eta = np.sqrt(yy / zz)
+    lower = np.outer(w[1:], w[1:]) / (1.0 + w[0]) + np.eye(z.size - 1)
+    scaled = np.block([[w[:1, None], w[None, 1:]], [w[1:, None], lower]])
+    inverse = scaled.copy()
+    inverse[0, 1:], inverse[1:, 0] = -w[1:], -w[1:]
+    W, Winv = eta * scaled, inverse / eta
+    if not (np.all(np.isfinite(W)) and np.all(np.isfinite(Winv))):
+        return None
+    return W, Winv
