@@ -58,20 +58,26 @@ __all__ = ["ContactForces", "ContactStep", "ContactStepper", "StepResult"]
 #: interior-point iterations per step at most
 MAX_ITERATIONS = 50
 #: a block's duality gap z_b . y_b at which a step is solved, relative to the scales of the
-#: forces and the coordinates (the issue's bound: 1e-10)
-COMPLEMENTARITY = 1e-10
-#: a cone's z_b . y_b at which it is solved relative to |z_b| |y_b| (a sliding contact:
-#: force and slip on opposite edges, orthogonal in R^3)
-ORTHOGONALITY = 1e-11
+#: forces and the coordinates
+COMPLEMENTARITY = 1e-13
+#: the same, at which a step whose iteration stalls (degenerate contacts: redundant
+#: points of a face at rest, a cone's apex) is accepted (the issue's bound)
+ACCEPTABLE = 1e-10
+#: the least centring target kappa, relative to the complementarity's tolerance
+CENTRING = 1e-6
 #: a cone's Jordan determinant relative to its scalar squared below which the
 #: Nesterov-Todd scaling of its block is not formed (its rows stay unscaled)
 DEGENERATE = 1e-26
 #: relative residual of the stage and slack equations at which a step is solved
 RESIDUAL = 1e-12
-#: the fraction of the way to the cones' boundary a step goes at most (a fixed one: Dojo's
-#: 1 - max(residual, complementarity)^2 rounds to 1 at these tolerances and lands the
-#: iterates on the boundary, where the Nesterov-Todd scaling cannot be formed)
+#: the fraction of the way to the cones' boundary a step goes at least; at most Dojo's
+#: 1 - max(residual, complementarity)^2, but not beyond 1 - TO_BOUNDARY (Dojo's rounds
+#: to 1 at these tolerances and lands the iterates on the boundary, where the
+#: Nesterov-Todd scaling cannot be formed)
 FRACTION_TO_BOUNDARY = 0.995
+TO_BOUNDARY = 1e-8
+#: relative residual below which a solved step takes no polishing Newton step
+POLISHED = 1e-15
 #: halvings of a step at most in the line search
 LINE_SEARCH = 10
 
@@ -399,39 +405,36 @@ class ContactStepper:
                         P[layout.cone, layout.cone], Q[layout.cone, layout.cone] = block
         return P, Q
 
-    def _block_gaps(self, z, y, fixed) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        r"""Per block b (gap or cone, those kept apart left out): the duality gap
-        :math:`z_b \cdot y_b` (the scalar part of :math:`z_b \circ y_b`, zero in the
-        cones exactly when :math:`z_b \circ y_b = 0`) and, on a cone,
-        :math:`|z_b|\,|y_b|` (zero on a gap)."""
-        gaps, sizes = [], []
+    def _block_gaps(self, z, y, fixed) -> NDArray[np.float64]:
+        r"""Per block b (gap or cone, those kept apart left out) the duality gap
+        :math:`z_b \cdot y_b`, the scalar part of :math:`z_b \circ y_b` (in the cones,
+        zero exactly when :math:`z_b \circ y_b = 0`)."""
+        gaps = []
         for layout in self.layout:
             i = layout.normal
             if not fixed[i]:
                 gaps.append(z[i] * y[i])
-                sizes.append(0.0)
             if layout.cone is not None and not fixed[layout.cone.start]:
-                zc, yc = z[layout.cone], y[layout.cone]
-                gaps.append(zc @ yc)
-                sizes.append(np.linalg.norm(zc) * np.linalg.norm(yc))
-        return np.array(gaps), np.array(sizes)
+                gaps.append(z[layout.cone] @ y[layout.cone])
+        return np.array(gaps)
 
     def _measures(self, equations, y, z, fixed, scale: float, tolerance: float):
-        r"""(residual of the equations, complementarity relative to its tolerance,
-        largest block duality gap) of an iterate.
+        r"""(residual of the equations, largest :math:`|z \circ y|` and largest block
+        duality gap :math:`z_b \cdot y_b`, both relative to ``tolerance``; the largest
+        block duality gap) of an iterate.
 
-        A block is solved when :math:`z_b \cdot y_b \le` ``tolerance`` (the gaps'
-        and forces' scales) or, on a cone, :math:`z_b \cdot y_b \le \epsilon
-        |z_b|\,|y_b|` (force and slip orthogonal: a sliding contact, whose
-        vector part of :math:`z_b \circ y_b` falls only as the square root of
-        the gap).
+        A step is solved when every entry of :math:`z \circ y` is below the
+        tolerance; one whose iteration stalls is accepted when the block
+        duality gaps are below ACCEPTABLE (on a sliding contact the vector part
+        of :math:`z_b \circ y_b`, the misalignment of force and slip, falls only
+        as the square root of the gap).
         """
         F, E = equations[0], equations[3]
         residual = max(np.max(np.abs(F)) / scale, np.max(np.abs(E), initial=0.0))
-        gaps, sizes = self._block_gaps(z, y, fixed)
-        bound = np.maximum(tolerance, ORTHOGONALITY * sizes)
-        relative = float(np.max(gaps / bound, initial=0.0))
-        return residual, relative, float(np.max(gaps, initial=0.0))
+        gaps = self._block_gaps(z, y, fixed)
+        jordan = float(np.max(np.abs(self._jordan(z, y)[~fixed]), initial=0.0))
+        largest = float(np.max(gaps, initial=0.0))
+        return residual, jordan / tolerance, largest / tolerance, largest
 
     def step(
         self, t0: float, h: float, qk, pk, guess_C, duals, excluded: int | None = None
@@ -465,22 +468,24 @@ class ContactStepper:
         e[fixed] = 0.0
         blocks = max(self._blocks(fixed), 1)
         scale = 1.0 + float(np.max(np.abs(pk)))
-        # a gap of COMPLEMENTARITY relative to the coordinates, at the forces' scale
+        # a gap of COMPLEMENTARITY relative to the coordinates' scale
         length = max(1.0, float(np.max(np.abs(qk))))
         eq = equations(x, y, z)
-        force = max(1.0, float(np.max(np.abs(y))))
-        residual, unsolved, complementarity = self._measures(
-            eq, y, z, fixed, scale, COMPLEMENTARITY * force * length
+        tolerance = COMPLEMENTARITY * length
+        residual, unsolved, loose, complementarity = self._measures(
+            eq, y, z, fixed, scale, tolerance
         )
         iterations, converged = 0, False
         while iterations < MAX_ITERATIONS:
             iterations += 1
             if residual <= RESIDUAL and unsolved <= 1.0:
+                # solved; once more unless at round-off (a contact's gap and an impact's
+                # time to round-off, not to the tolerance: one more Newton step)
+                if converged or residual <= POLISHED:
+                    break
                 converged = True
-                break
             if not np.isfinite(residual + unsolved):
                 break
-            tolerance = COMPLEMENTARITY * force * length
             gap = float(z @ y) / blocks
             P, Q = self._scaling(z, y, fixed)
             K = self._newton_matrix(eq, P, Q, z, y, fixed)
@@ -496,17 +501,19 @@ class ContactStepper:
             alpha = min(self._to_boundary(y, dy_a, 1.0), self._to_boundary(z, dz_a, 1.0))
             gap_aff = float((z + alpha * dz_a) @ (y + alpha * dy_a)) / blocks
             sigma = min(1.0, max(gap_aff, 0.0) / gap) ** 3 if gap > 0 else 0.0
-            # corrector: centred towards kappa = sigma mu (never below the tolerance's
-            # tenth: aiming at 0 ends on the cones' boundary where the contacts are
-            # degenerate), with the predictor's second-order term
-            kappa = max(sigma * gap, 0.1 * tolerance)
+            # corrector: centred towards kappa = sigma mu (never below CENTRING times the
+            # tolerance: aiming at 0 ends on the cones' boundary where the contacts are
+            # degenerate; a resting contact's gap is left at kappa / lambda), with the
+            # predictor's second-order term
+            kappa = max(sigma * gap, CENTRING * tolerance)
             rhs[nx + m :] -= self._jordan(P @ dz_a, Q @ dy_a) - kappa * e
             rhs[nx + m :][fixed] = 0.0
             direction = scipy.linalg.lu_solve(lu, rhs, check_finite=False)
             if not np.all(np.isfinite(direction)):
                 break
             dx, dy, dz = direction[:nx], direction[nx : nx + m], direction[nx + m :]
-            tau = FRACTION_TO_BOUNDARY
+            tau = max(FRACTION_TO_BOUNDARY, 1.0 - max(residual, complementarity) ** 2)
+            tau = min(tau, 1.0 - TO_BOUNDARY)
             alpha = min(self._to_boundary(y, dy, tau), self._to_boundary(z, dz, tau))
             # backtracking (as Dojo's): halved while both measures grow
             for _ in range(LINE_SEARCH):
@@ -516,10 +523,13 @@ class ContactStepper:
                 if measures[0] <= residual or measures[1] <= unsolved:
                     break
                 alpha /= 2
-            if not alpha > 1e-12:
+            if not (alpha > 1e-12 and np.isfinite(measures[0] + measures[1])):
                 break  # stalled at a boundary: the caller starts the step afresh
-            (x, y, z), eq, (residual, unsolved, complementarity) = trial, eq_trial, measures
-            force = max(1.0, float(np.max(np.abs(y))))
+            if converged and not (measures[0] <= RESIDUAL and measures[1] <= 1.0):
+                break  # the polishing step would leave the solution: not taken
+            (x, y, z), eq, (residual, unsolved, loose, complementarity) = trial, eq_trial, measures
+        if not converged:  # stalled or out of iterations: the looser bound
+            converged = residual <= RESIDUAL and loose <= ACCEPTABLE / COMPLEMENTARITY
         p_new, C = eq[7], eq[8]
         if self.system.m and converged:
             try:
