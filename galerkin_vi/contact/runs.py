@@ -461,7 +461,7 @@ class _Run:
             if self.functions.gradient(j, t, q, self.prm) @ v < 0.0:
                 # part of the persistent contact, not an impact of its own: not listed
                 p, _ = impulse(self.system, self.functions, j, t, q, p, self.prm)
-            elif sticking[j]:
+            if sticking[j]:  # also after a round-off approach speed was damped
                 p = stop_slip(self.system, self.functions, j, t, q, p, self.prm)
         return p
 

@@ -64,7 +64,7 @@ COMPLEMENTARITY = 1e-13
 #: points of a face at rest, a cone's apex) is accepted (the issue's bound)
 ACCEPTABLE = 1e-10
 #: the least centring target kappa, relative to the complementarity's tolerance
-CENTRING = 1e-6
+CENTRING = 1e-3
 #: a cone's Jordan determinant relative to its scalar squared below which the
 #: Nesterov-Todd scaling of its block is not formed (its rows stay unscaled)
 DEGENERATE = 1e-26
