@@ -35,14 +35,19 @@ inside the cone, sliding on its edge against :math:`\bar w`. With slacks
 (:math:`\lambda`, :math:`(\mu\lambda, \beta)`), the step solves the stage
 equations, the slacks' definitions and :math:`z \circ y = \kappa e` (the Jordan
 product of the cones) for :math:`\kappa \to 0` by a primal–dual interior-point
-method with Mehrotra's predictor–corrector and the fraction-to-boundary rule
-(as Dojo does), with the exact Jacobians of the stage equations, the gaps and
-the slips.
+method with Mehrotra's predictor–corrector, the fraction-to-boundary rule and
+backtracking (as Dojo does), with the exact Jacobians of the stage equations,
+the gaps and the slips. The complementarity rows are linearised in
+Nesterov–Todd scaled variables (Vandenberghe 2010), which keeps a sliding
+contact's iterates off its cone's boundary, and :math:`\kappa` stays above a
+floor, so that the redundant contacts of a face at rest do not jam the
+iteration.
 
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,11 +62,12 @@ __all__ = ["ContactForces", "ContactStep", "ContactStepper", "StepResult"]
 
 #: interior-point iterations per step at most
 MAX_ITERATIONS = 50
-#: a block's duality gap z_b . y_b at which a step is solved, relative to the scales of the
-#: forces and the coordinates
+#: largest entry of z o y at which a step is solved, relative to the coordinates' scale
+#: max(1, |q_k|) (a gap of a resting contact to round-off)
 COMPLEMENTARITY = 1e-13
-#: the same, at which a step whose iteration stalls (degenerate contacts: redundant
-#: points of a face at rest, a cone's apex) is accepted (the issue's bound)
+#: largest block duality gap z_b . y_b, relative likewise, at which a step whose iteration
+#: stalls (degenerate contacts: redundant points of a face at rest) is accepted (the
+#: issue's bound)
 ACCEPTABLE = 1e-10
 #: the least centring target kappa, relative to the complementarity's tolerance
 CENTRING = 1e-3
@@ -492,7 +498,9 @@ class ContactStepper:
             u, v = P @ z, Q @ y
             rhs = -np.concatenate([eq[0], eq[3], self._jordan(u, v)])
             rhs[nx + m :][fixed] = 0.0
-            lu = scipy.linalg.lu_factor(K, check_finite=False)
+            with warnings.catch_warnings():  # a singular K: the direction is not finite
+                warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+                lu = scipy.linalg.lu_factor(K, check_finite=False)
             # predictor: the affine-scaling direction (kappa = 0)
             affine = scipy.linalg.lu_solve(lu, rhs, check_finite=False)
             if not np.all(np.isfinite(affine)):
