@@ -391,6 +391,12 @@ class _Run:
                  touching.complementarity)
             )  # fmt: skip
             q_hit, p_minus = touching.q, touching.p
+            v_hit = self.system.inverse_legendre(q_hit, p_minus, t_hit, self.params)
+            if self.functions.gradient(j, t_hit, q_hit, self.prm) @ v_hit >= 0.0:
+                # grazed, not hit: the gap closes at the cut while it opens already (the
+                # other contacts' forces turned it); the step goes on from there
+                t, q, p = t_hit, q_hit, p_minus
+                continue
             p_plus, impact = impulse(
                 self.system, self.functions, j, t_hit, q_hit, p_minus, self.prm
             )
