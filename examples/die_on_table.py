@@ -15,7 +15,8 @@ the height of its centre and its energy against time.
 
 Run::
 
-    python examples/die_on_table.py [--seconds 3] [--friction 1.0] [--output docs/_static]
+    python examples/die_on_table.py [--seconds 3] [--friction 1.0] [--order 1]
+                                    [--output docs/_static]
 """
 
 from __future__ import annotations
@@ -66,6 +67,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--h", type=float, default=0.01)
     parser.add_argument("--friction", type=float, default=1.0)
+    parser.add_argument("--order", type=int, default=1, help="s of Galerkin(s)")
     parser.add_argument(
         "--output", type=Path, default=None, help="directory for the PNG (default: a new temp dir)"
     )
@@ -74,12 +76,12 @@ def main(argv: list[str] | None = None) -> dict:
     mb = model(args.friction)
     q0, v0 = mb.state(**throw())
     start = time.perf_counter()
-    integrator = gvi.Integrator(mb.system, gvi.Galerkin(1))
+    integrator = gvi.Integrator(mb.system, gvi.Galerkin(args.order))
     traj = integrator.integrate(q0, v0=v0, h=args.h, t_span=(0.0, args.seconds))
     seconds = time.perf_counter() - start
     motion = mb.motion(traj, "die")
     energy = traj.energy()
-    print(f"{args.seconds:g} s at h = {args.h:g} (Galerkin(1)) in {seconds:.1f} s: "
+    print(f"{args.seconds:g} s at h = {args.h:g} (Galerkin({args.order})) in {seconds:.1f} s: "
           f"{traj.message}")  # fmt: skip
     print(f"{len(traj.impacts)} impacts; the first ones:")
     print("      t   corner  mode   energy lost")

@@ -663,12 +663,6 @@ def test_a_tumbling_corner_hits_the_floor_by_newtons_law(rotation):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    raises=ValueError,
-    reason="galerkin_vi.contact: the momentum after a frictional impact of a constrained body "
-    "violates the hidden constraint (see the report of issue 29's multibody tests)",
-)
 def test_a_die_thrown_on_a_table_comes_to_rest_on_a_face():
     a, m, g = 0.05, 0.1, 9.81  # half side, mass
     die = gvi.RigidBody("die", mass=m, inertia=[2 * m * (2 * a) ** 2 / 12] * 3)

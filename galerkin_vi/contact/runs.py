@@ -64,8 +64,9 @@ LONGEST_PIECE = 65536
 
 #: a gap above OPEN_GAP * max(1, |q|) at a step's start: the contact is open there
 OPEN_GAP = 1e-9
-#: added to the gap of a contact kept apart while its first touch is looked for
-OUT_OF_REACH = 1e6
+
+#: halvings of a complementarity step at most when its iteration fails
+HALVINGS = 2
 
 #: the modes of ``integrate(contact_mode=...)``
 CONTACT_MODES = ("auto", "event", "time-stepping")
@@ -292,8 +293,8 @@ class _Run:
         from .time_stepping import ContactStepper
 
         if self._stepper is None:
-            # one per run, not kept with the system: it holds the run's parameters and
-            # gap offsets, and ensemble members run in threads at once
+            # one per run, not kept with the system: it holds the run's parameters, and
+            # ensemble members run in threads at once
             tables = self.integrator.method.tables
             self._stepper = ContactStepper(self.functions, tables, self.prm)
             self._duals = np.ones(self._stepper.size)
@@ -313,28 +314,49 @@ class _Run:
 
     def _stepping(self, t: float, q, p, tau: float, k: int, excluded: int | None = None):
         """One complementarity step of length tau (contact ``excluded`` kept apart)."""
-        stepper = self._stepper
-        stepper.offsets[:] = 0.0
-        if excluded is not None:
-            stepper.offsets[excluded] = OUT_OF_REACH  # its gap far open: no force
-        try:
-            guess = self._guess(q, p, t, tau)
-            result = stepper.step(t, tau, q, p, guess, self._duals)
-            if not result.converged:
-                # the last step's forces may start it far from this one's (a contact that
-                # just took the load): once more from the centre of the cones
-                result = stepper.step(t, tau, q, p, guess, np.ones_like(self._duals))
-        finally:
-            stepper.offsets[:] = 0.0
+        result = self._attempt(t, q, p, tau, excluded, HALVINGS)
         if not result.converged:
             raise _Stop(
                 RunStatus.NO_CONVERGENCE,
                 f"step {k} (t = {t:.6g}): the contact step's interior-point iteration did not "
                 f"converge in {result.iterations} iterations (complementarity "
-                f"{result.complementarity:.3g}); the states before are kept",
+                f"{result.complementarity:.3g}), nor from the cones' centres, nor in halves; "
+                "the states before are kept",
                 k, t,
             )  # fmt: skip
         return result
+
+    def _attempt(self, t: float, q, p, tau: float, excluded: int | None, halvings: int):
+        """A step of length tau from the last step's forces; failing that, from the
+        cones' centres (the last forces may start it far from this one's: a contact
+        that just took the load); failing that, as two steps of tau / 2 (a shorter
+        step moves the contacts less), ``halvings`` times at most."""
+        from .time_stepping import StepResult
+
+        stepper = self._stepper
+        guess = self._guess(q, p, t, tau)
+        result = stepper.step(t, tau, q, p, guess, self._duals, excluded)
+        if not result.converged:
+            result = stepper.step(t, tau, q, p, guess, None, excluded)
+        if result.converged or halvings == 0:
+            return result
+        first = self._attempt(t, q, p, tau / 2, excluded, halvings - 1)
+        if not first.converged:
+            return first
+        second = self._attempt(t + tau / 2, first.q, first.p, tau / 2, excluded, halvings - 1)
+        # constant forces over each half: their means carry the impulses over tau
+        return StepResult(
+            q=second.q,
+            p=second.p,
+            C=second.C,
+            normal=(first.normal + second.normal) / 2,
+            tangential=(first.tangential + second.tangential) / 2,
+            duals=second.duals,
+            sticking=second.sticking,
+            iterations=first.iterations + second.iterations,
+            complementarity=max(first.complementarity, second.complementarity),
+            converged=second.converged,
+        )
 
     def _through_stepping(self, t: float, q, p, t_next: float, k: int):
         """Complementarity steps from t to the grid time t_next, impacts cut out.
@@ -369,6 +391,12 @@ class _Run:
                  touching.complementarity)
             )  # fmt: skip
             q_hit, p_minus = touching.q, touching.p
+            v_hit = self.system.inverse_legendre(q_hit, p_minus, t_hit, self.params)
+            if self.functions.gradient(j, t_hit, q_hit, self.prm) @ v_hit >= 0.0:
+                # grazed, not hit: the gap closes at the cut while it opens already (the
+                # other contacts' forces turned it); the step goes on from there
+                t, q, p = t_hit, q_hit, p_minus
+                continue
             p_plus, impact = impulse(
                 self.system, self.functions, j, t_hit, q_hit, p_minus, self.prm
             )
@@ -439,7 +467,7 @@ class _Run:
             if self.functions.gradient(j, t, q, self.prm) @ v < 0.0:
                 # part of the persistent contact, not an impact of its own: not listed
                 p, _ = impulse(self.system, self.functions, j, t, q, p, self.prm)
-            elif sticking[j]:
+            if sticking[j]:  # also after a round-off approach speed was damped
                 p = stop_slip(self.system, self.functions, j, t, q, p, self.prm)
         return p
 

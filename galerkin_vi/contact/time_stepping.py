@@ -35,17 +35,23 @@ inside the cone, sliding on its edge against :math:`\bar w`. With slacks
 (:math:`\lambda`, :math:`(\mu\lambda, \beta)`), the step solves the stage
 equations, the slacks' definitions and :math:`z \circ y = \kappa e` (the Jordan
 product of the cones) for :math:`\kappa \to 0` by a primal–dual interior-point
-method with Mehrotra's predictor–corrector and the fraction-to-boundary rule
-(as Dojo does), with the exact Jacobians of the stage equations, the gaps and
-the slips.
+method with Mehrotra's predictor–corrector, the fraction-to-boundary rule and
+backtracking (as Dojo does), with the exact Jacobians of the stage equations,
+the gaps and the slips. The complementarity rows are linearised in
+Nesterov–Todd scaled variables (Vandenberghe 2010), which keeps a sliding
+contact's iterates off its cone's boundary, and :math:`\kappa` stays above a
+floor, so that the redundant contacts of a face at rest do not jam the
+iteration.
 
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 from numpy.typing import NDArray
 
 from ..model.constraints import project_momentum
@@ -56,10 +62,30 @@ __all__ = ["ContactForces", "ContactStep", "ContactStepper", "StepResult"]
 
 #: interior-point iterations per step at most
 MAX_ITERATIONS = 50
-#: complementarity z . y / pairs at which a step is solved (the issue's bound: 1e-10)
-COMPLEMENTARITY = 1e-12
+#: largest entry of z o y at which a step is solved, relative to the coordinates' scale
+#: max(1, |q_k|) (a gap of a resting contact to round-off)
+COMPLEMENTARITY = 1e-13
+#: largest block duality gap z_b . y_b, relative likewise, at which a step whose iteration
+#: stalls (degenerate contacts: redundant points of a face at rest) is accepted (the
+#: issue's bound)
+ACCEPTABLE = 1e-10
+#: the least centring target kappa, relative to the complementarity's tolerance
+CENTRING = 1e-3
+#: a cone's Jordan determinant relative to its scalar squared below which the
+#: Nesterov-Todd scaling of its block is not formed (its rows stay unscaled)
+DEGENERATE = 1e-26
 #: relative residual of the stage and slack equations at which a step is solved
 RESIDUAL = 1e-12
+#: the fraction of the way to the cones' boundary a step goes at least; at most Dojo's
+#: 1 - max(residual, complementarity)^2, but not beyond 1 - TO_BOUNDARY (Dojo's rounds
+#: to 1 at these tolerances and lands the iterates on the boundary, where the
+#: Nesterov-Todd scaling cannot be formed)
+FRACTION_TO_BOUNDARY = 0.995
+TO_BOUNDARY = 1e-8
+#: relative residual below which a solved step takes no polishing Newton step
+POLISHED = 1e-15
+#: halvings of a step at most in the line search
+LINE_SEARCH = 10
 
 
 @dataclass(frozen=True)
@@ -152,8 +178,6 @@ class ContactStepper:
         ]
         self.size = size
         self.n = n
-        #: added to each contact's gap (a contact kept apart: see contact.runs)
-        self.offsets = np.zeros(len(system.contacts))
         self.tangential_size = max(
             (len(c.slip) for c in system.contacts if c.friction > 0.0), default=1
         )
@@ -207,7 +231,7 @@ class ContactStepper:
         Fy[:, normal] = node_force[:, :s].reshape(len(normal), sn).T
         Fx += bend(np.einsum("j,ijab->iab", lam, all_hess))
         # the gaps at the step's end, q_{k+1} = q_k + C^s
-        E[normal] -= gaps_end + self.offsets
+        E[normal] -= gaps_end
         Ex[normal, (s - 1) * n :] = -grads_end
         if fn.slips is not None:
             all_w, all_wq, all_wv, all_wvq = (self._each(f, t, Q, V) for f in fn.slips)
@@ -297,8 +321,13 @@ class ContactStepper:
                 e[layout.cone.start + 1 : layout.cone.stop] = 0.0
         return e
 
-    def _blocks(self) -> int:
-        return len(self.layout) + sum(layout.cone is not None for layout in self.layout)
+    def _blocks(self, fixed: NDArray[np.bool_]) -> int:
+        """The number of blocks (gaps and cones) in the problem, those kept apart left out."""
+        count = 0
+        for layout in self.layout:
+            count += not fixed[layout.normal]
+            count += layout.cone is not None and not fixed[layout.cone.start]
+        return int(count)
 
     def _to_boundary(self, v, dv, tau: float) -> float:
         """Largest alpha <= 1 keeping v + alpha dv inside every orthant and cone, by tau."""
@@ -325,52 +354,196 @@ class ContactStepper:
         return v
 
     # ---------------------------------------------------------------- solve
-    def step(self, t0: float, h: float, qk, pk, guess_C, duals) -> StepResult:
-        """One step of length h from (q_k, p_k): Mehrotra's predictor–corrector."""
+    def _fixed(self, excluded: int | None) -> NDArray[np.bool_]:
+        """The entries of y and z of the contact kept apart (none: all False)."""
+        fixed = np.zeros(self.size, dtype=bool)
+        if excluded is not None:
+            layout = self.layout[excluded]
+            fixed[layout.normal] = True
+            if layout.cone is not None:
+                fixed[layout.cone] = True
+        return fixed
+
+    def _newton_matrix(self, equations, P, Q, z, y, fixed) -> NDArray[np.float64]:
+        r"""The Jacobian of (stage equations, slacks' definitions, :math:`u \circ v`) in
+        (x, y, z), :math:`u = P z`, :math:`v = Q y` (:meth:`_scaling`): the
+        complementarity rows are :math:`u \circ (Q\,dy) + v \circ (P\,dz)`; the rows
+        of a contact kept apart say dy = dz = 0 (its y stays 0)."""
+        F, Fx, Fy, E, Ex, Ey, Ez = equations[:7]
+        nx, m = Fx.shape[0], self.size
+        K = np.zeros((nx + 2 * m, nx + 2 * m))
+        K[:nx, :nx], K[:nx, nx : nx + m] = Fx, Fy
+        K[nx : nx + m, :nx], K[nx : nx + m, nx : nx + m] = Ex, Ey
+        K[nx : nx + m, nx + m :] = Ez
+        K[nx + m :, nx : nx + m] = self._arrow(P @ z) @ Q
+        K[nx + m :, nx + m :] = self._arrow(Q @ y) @ P
+        rows = nx + np.flatnonzero(fixed)
+        K[rows] = 0.0
+        K[rows, rows + m] = 1.0  # dz = 0
+        K[rows + m] = 0.0
+        K[rows + m, rows] = 1.0  # dy = 0
+        return K
+
+    def _scaling(self, z, y, fixed) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        r"""The block-diagonal scalings (P, Q) of the slacks z and duals y.
+
+        Nesterov–Todd where it can be formed: P = W, Q = W^{-1} with
+        :math:`W z = W^{-1} y = \lambda` (:func:`_nesterov_todd`); on a gap
+        :math:`w = \sqrt{y / z}`. Newton's equation for :math:`\lambda \circ
+        \lambda = \kappa e` keeps the iterates well inside the cones where the
+        unscaled :math:`z \circ y` jams against a cone's boundary (a sliding
+        contact). Where a block is on its boundary to round-off (its scaling
+        would overflow) and for a contact kept apart, P = Q = I: the unscaled
+        rows :math:`z \circ dy + y \circ dz`.
+        """
+        m = self.size
+        P, Q = np.eye(m), np.eye(m)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            for layout in self.layout:
+                i = layout.normal
+                if not fixed[i]:
+                    w = np.sqrt(y[i] / z[i])
+                    if 0.0 < w < np.inf and 1.0 / w < np.inf:
+                        P[i, i], Q[i, i] = w, 1.0 / w
+                if layout.cone is not None and not fixed[layout.cone.start]:
+                    block = _nesterov_todd(z[layout.cone], y[layout.cone])
+                    if block is not None:
+                        P[layout.cone, layout.cone], Q[layout.cone, layout.cone] = block
+        return P, Q
+
+    def _block_gaps(self, z, y, fixed) -> NDArray[np.float64]:
+        r"""Per block b (gap or cone, those kept apart left out) the duality gap
+        :math:`z_b \cdot y_b`, the scalar part of :math:`z_b \circ y_b` (in the cones,
+        zero exactly when :math:`z_b \circ y_b = 0`)."""
+        gaps = []
+        for layout in self.layout:
+            i = layout.normal
+            if not fixed[i]:
+                gaps.append(z[i] * y[i])
+            if layout.cone is not None and not fixed[layout.cone.start]:
+                gaps.append(z[layout.cone] @ y[layout.cone])
+        return np.array(gaps)
+
+    def _measures(self, equations, y, z, fixed, scale: float, tolerance: float):
+        r"""(residual of the equations, largest :math:`|z \circ y|` and largest block
+        duality gap :math:`z_b \cdot y_b`, both relative to ``tolerance``; the largest
+        block duality gap) of an iterate.
+
+        A step is solved when every entry of :math:`z \circ y` is below the
+        tolerance; one whose iteration stalls is accepted when the block
+        duality gaps are below ACCEPTABLE (on a sliding contact the vector part
+        of :math:`z_b \circ y_b`, the misalignment of force and slip, falls only
+        as the square root of the gap).
+        """
+        F, E = equations[0], equations[3]
+        residual = max(np.max(np.abs(F)) / scale, np.max(np.abs(E), initial=0.0))
+        gaps = self._block_gaps(z, y, fixed)
+        jordan = float(np.max(np.abs(self._jordan(z, y)[~fixed]), initial=0.0))
+        largest = float(np.max(gaps, initial=0.0))
+        return residual, jordan / tolerance, largest / tolerance, largest
+
+    def step(
+        self, t0: float, h: float, qk, pk, guess_C, duals, excluded: int | None = None
+    ) -> StepResult:
+        """One step of length h from (q_k, p_k): Mehrotra's predictor–corrector.
+
+        ``excluded``: a contact kept apart (no force: its y is 0 and its rows
+        drop out), as when the first touch of an open contact is looked for.
+        ``duals`` None starts from the cones' centres (the Jordan identity).
+        """
         s = self.tables.d.size - 1
         nx, m = s * (self.n + self.system.m), self.size
+        fixed = self._fixed(excluded)
+        e = self._identity()
         x = np.zeros(nx)
         x[: s * self.n] = np.asarray(guess_C, dtype=float)[1:].ravel()
-        y = self._interior(np.asarray(duals, dtype=float), 1e-6, margin=1.0)
-        z0 = np.zeros(m)
-        F, Fx, Fy, E, Ex, Ey, Ez, p_new, C = self._equations(t0, h, qk, pk, x, y, z0)
-        # E(z = 0) = -(the slacks' values); the slip speed zeta is free
-        z = self._interior(-E, 1e-6, margin=1.0)
-        e = self._identity()
-        blocks = self._blocks()
+        start = e if duals is None else np.asarray(duals, dtype=float)
+        y = self._interior(start, 1e-6, margin=1.0)
+        y[fixed] = 0.0
+
+        def equations(x, y, z):
+            eq = list(self._equations(t0, h, qk, pk, x, y, z))
+            eq[3][fixed] = 0.0  # E: the fixed slacks stay where they are
+            return eq
+
+        if duals is None:  # both at the Jordan identity: the centre of the orthants and cones
+            z = y.copy()
+        else:  # E(z = 0) = -(the slacks' values); the slip speed zeta is free
+            z = self._interior(-equations(x, y, np.zeros(m))[3], 1e-6, margin=1.0)
+        z[fixed] = e[fixed]
+        e[fixed] = 0.0
+        blocks = max(self._blocks(fixed), 1)
         scale = 1.0 + float(np.max(np.abs(pk)))
+        # a gap of COMPLEMENTARITY relative to the coordinates' scale
+        length = max(1.0, float(np.max(np.abs(qk))))
+        eq = equations(x, y, z)
+        tolerance = COMPLEMENTARITY * length
+        residual, unsolved, loose, complementarity = self._measures(
+            eq, y, z, fixed, scale, tolerance
+        )
         iterations, converged = 0, False
         while iterations < MAX_ITERATIONS:
             iterations += 1
-            F, Fx, Fy, E, Ex, Ey, Ez, p_new, C = self._equations(t0, h, qk, pk, x, y, z)
-            gap = float(z @ y) / blocks
-            residual = max(np.max(np.abs(F)) / scale, np.max(np.abs(E)))
-            complementarity = float(np.max(np.abs(self._jordan(z, y))))
-            if residual <= RESIDUAL and complementarity <= COMPLEMENTARITY:
+            if residual <= RESIDUAL and unsolved <= 1.0:
+                # solved; once more unless at round-off (a contact's gap and an impact's
+                # time to round-off, not to the tolerance: one more Newton step)
+                if converged or residual <= POLISHED:
+                    break
                 converged = True
+            if not np.isfinite(residual + unsolved):
                 break
-            K = np.zeros((nx + 2 * m, nx + 2 * m))
-            K[:nx, :nx], K[:nx, nx : nx + m] = Fx, Fy
-            K[nx : nx + m, :nx], K[nx : nx + m, nx : nx + m] = Ex, Ey
-            K[nx : nx + m, nx + m :] = Ez
-            K[nx + m :, nx : nx + m] = self._arrow(z)
-            K[nx + m :, nx + m :] = self._arrow(y)
-            zy = self._jordan(z, y)
+            gap = float(z @ y) / blocks
+            P, Q = self._scaling(z, y, fixed)
+            K = self._newton_matrix(eq, P, Q, z, y, fixed)
+            u, v = P @ z, Q @ y
+            rhs = -np.concatenate([eq[0], eq[3], self._jordan(u, v)])
+            rhs[nx + m :][fixed] = 0.0
+            with warnings.catch_warnings():  # a singular K: the direction is not finite
+                warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+                lu = scipy.linalg.lu_factor(K, check_finite=False)
             # predictor: the affine-scaling direction (kappa = 0)
-            affine = np.linalg.solve(K, -np.concatenate([F, E, zy]))
+            affine = scipy.linalg.lu_solve(lu, rhs, check_finite=False)
+            if not np.all(np.isfinite(affine)):
+                break
             dy_a, dz_a = affine[nx : nx + m], affine[nx + m :]
             alpha = min(self._to_boundary(y, dy_a, 1.0), self._to_boundary(z, dz_a, 1.0))
             gap_aff = float((z + alpha * dz_a) @ (y + alpha * dy_a)) / blocks
-            sigma = (gap_aff / gap) ** 3 if gap > 0 else 0.0
-            # corrector: centred towards sigma mu, the predictor's second-order term
-            r3 = zy + self._jordan(dz_a, dy_a) - sigma * gap * e
-            step = np.linalg.solve(K, -np.concatenate([F, E, r3]))
-            dx, dy, dz = step[:nx], step[nx : nx + m], step[nx + m :]
-            tau = max(0.99, 1.0 - gap)
+            sigma = min(1.0, max(gap_aff, 0.0) / gap) ** 3 if gap > 0 else 0.0
+            # corrector: centred towards kappa = sigma mu (never below CENTRING times the
+            # tolerance: aiming at 0 ends on the cones' boundary where the contacts are
+            # degenerate; a resting contact's gap is left at kappa / lambda), with the
+            # predictor's second-order term
+            kappa = max(sigma * gap, CENTRING * tolerance)
+            rhs[nx + m :] -= self._jordan(P @ dz_a, Q @ dy_a) - kappa * e
+            rhs[nx + m :][fixed] = 0.0
+            direction = scipy.linalg.lu_solve(lu, rhs, check_finite=False)
+            if not np.all(np.isfinite(direction)):
+                break
+            dx, dy, dz = direction[:nx], direction[nx : nx + m], direction[nx + m :]
+            tau = max(FRACTION_TO_BOUNDARY, 1.0 - max(residual, complementarity) ** 2)
+            tau = min(tau, 1.0 - TO_BOUNDARY)
             alpha = min(self._to_boundary(y, dy, tau), self._to_boundary(z, dz, tau))
-            x, y, z = x + alpha * dx, y + alpha * dy, z + alpha * dz
-        if self.system.m:
-            p_new = self._projected(t0 + h, qk + C[s], p_new)
+            # backtracking (as Dojo's): halved while both measures grow
+            for _ in range(LINE_SEARCH):
+                trial = (x + alpha * dx, y + alpha * dy, z + alpha * dz)
+                eq_trial = equations(*trial)
+                measures = self._measures(eq_trial, trial[1], trial[2], fixed, scale, tolerance)
+                if measures[0] <= residual or measures[1] <= unsolved:
+                    break
+                alpha /= 2
+            if not (alpha > 1e-12 and np.isfinite(measures[0] + measures[1])):
+                break  # stalled at a boundary: the caller starts the step afresh
+            if converged and not (measures[0] <= RESIDUAL and measures[1] <= 1.0):
+                break  # the polishing step would leave the solution: not taken
+            (x, y, z), eq, (residual, unsolved, loose, complementarity) = trial, eq_trial, measures
+        if not converged:  # stalled or out of iterations: the looser bound
+            converged = residual <= RESIDUAL and loose <= ACCEPTABLE / COMPLEMENTARITY
+        p_new, C = eq[7], eq[8]
+        if self.system.m and converged:
+            try:
+                p_new = self._projected(t0 + h, qk + C[s], p_new)
+            except ValueError:
+                converged = False
         normal = np.array([y[layout.normal] for layout in self.layout])
         tangential = np.zeros((len(self.layout), self.tangential_size))
         sticking = np.zeros(len(self.layout), dtype=bool)
@@ -389,7 +562,7 @@ class ContactStepper:
             duals=y,
             sticking=sticking,
             iterations=iterations,
-            complementarity=float(np.max(np.abs(self._jordan(z, y)))),
+            complementarity=complementarity,
             converged=converged,
         )
 
@@ -403,7 +576,8 @@ def _cone_step(v: NDArray, dv: NDArray) -> float:
     # (v0 + a dv0)^2 - |v1 + a dv1|^2 = 0 and v0 + a dv0 = 0: the smallest positive root
     a = dv[0] ** 2 - dv[1:] @ dv[1:]
     b = 2 * (v[0] * dv[0] - v[1:] @ dv[1:])
-    c = v[0] ** 2 - v[1:] @ v[1:]
+    size = np.linalg.norm(v[1:])
+    c = (v[0] - size) * (v[0] + size)
     roots = [-v[0] / dv[0]] if dv[0] < 0 else []
     if abs(a) > 1e-300:
         disc = b * b - 4 * a * c
@@ -414,3 +588,48 @@ def _cone_step(v: NDArray, dv: NDArray) -> float:
         roots.append(-c / b)
     positive = [r for r in roots if r > 0]
     return min(positive) if positive else np.inf
+
+
+def _jordan_norm(v: NDArray) -> float:
+    r""":math:`\sqrt{v_0^2 - |v_1|^2}` as :math:`\sqrt{(v_0 - |v_1|)(v_0 + |v_1|)}`, free of
+    the cancellation of the squares near the cone's boundary (as CVXOPT's ``jnrm2``)."""
+    size = float(np.linalg.norm(v[1:]))
+    return float(np.sqrt(max((v[0] - size) * (v[0] + size), 0.0)))
+
+
+def _nesterov_todd(z: NDArray, y: NDArray) -> tuple[NDArray, NDArray] | None:
+    r"""The Nesterov–Todd scaling (W, W^{-1}) of a cone's slack z and dual y, or None
+    where it cannot be formed (z or y on the boundary to round-off).
+
+    With :math:`J = \operatorname{diag}(1, -1, \dots)`, the Jordan norms
+    :math:`\|z\|_J = \sqrt{z^{\mathsf T} J z}` (:func:`_jordan_norm`),
+    :math:`\bar z = z / \|z\|_J`, :math:`\bar y = y / \|y\|_J`,
+    :math:`\gamma = \sqrt{(1 + \bar z^{\mathsf T} \bar y) / 2}`,
+    :math:`w = (J \bar z + \bar y) / (2\gamma)`,
+    :math:`\eta = \sqrt{\|y\|_J / \|z\|_J}`,
+
+    .. math::
+
+        W = \eta \begin{pmatrix} w_0 & w_1^{\mathsf T} \\
+            w_1 & I + w_1 w_1^{\mathsf T} / (1 + w_0) \end{pmatrix},
+        \qquad W z = W^{-1} y
+
+    (Vandenberghe, *The CVXOPT linear and quadratic cone program solvers*,
+    2010, §4); :math:`W^{-1}` is W with :math:`w_1 \to -w_1`, :math:`\eta \to 1/\eta`.
+    """
+    zz, yy = _jordan_norm(z), _jordan_norm(y)
+    limit = np.sqrt(DEGENERATE)
+    if not (zz > limit * z[0] and yy > limit * y[0]):
+        return None
+    zb, yb = z / zz, y / yy
+    gamma = np.sqrt((1.0 + zb @ yb) / 2.0)
+    w = (yb + np.concatenate([zb[:1], -zb[1:]])) / (2.0 * gamma)
+    eta = np.sqrt(yy / zz)
+    lower = np.outer(w[1:], w[1:]) / (1.0 + w[0]) + np.eye(z.size - 1)
+    scaled = np.block([[w[:1, None], w[None, 1:]], [w[1:, None], lower]])
+    inverse = scaled.copy()
+    inverse[0, 1:], inverse[1:, 0] = -w[1:], -w[1:]
+    W, Winv = eta * scaled, inverse / eta
+    if not (np.all(np.isfinite(W)) and np.all(np.isfinite(Winv))):
+        return None
+    return W, Winv
