@@ -422,28 +422,55 @@ def time_to_error_table(rows: list[Row], targets: Sequence[float]) -> None:
     print(f"\nbaseline per target: {named}")
 
 
+def _style(label: str, index: int) -> dict:
+    """galerkin_vi solid (quaternion) or dash-dotted (matrix), peers dashed; colours by family."""
+    import matplotlib.pyplot as plt
+
+    colours = plt.get_cmap("tab20").colors
+    if label.startswith("galerkin_vi"):
+        return {"ls": "-" if "quaternion" in label else "-.", "color": colours[index % 20]}
+    return {"ls": "--", "color": colours[index % 20], "marker": "s"}
+
+
 def plot(path: str, err_rows: list[Row], long_rows: list[Row]) -> None:
+    """Work–precision of the free body, and the energy error of the long runs against h:
+    runs that failed (MuJoCo's unstable ones) are left out, not drawn at zero."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 5))
-    for label in dict.fromkeys(r.label for r in err_rows):
-        pts = sorted((r.cpu, r.error) for r in err_rows if r.label == label and r.error > 0)
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.5))
+    labels = list(dict.fromkeys(r.label for r in err_rows + long_rows))
+    for label in labels:
+        style = {"marker": "o", "ms": 4, **_style(label, labels.index(label))}
+        pts = sorted(
+            (r.cpu, r.error) for r in err_rows if r.label == label and r.error > 0 and not r.message
+        )
         if pts:
-            ax1.loglog(*zip(*pts, strict=True), "o-", label=label, ms=4)
+            ax1.loglog(*zip(*pts, strict=True), label=label, **style)
+        pts = sorted(
+            (r.setting, r.energy)
+            for r in long_rows
+            if r.label == label and r.family != "DOP853" and r.energy > 0 and not r.message
+        )
+        if pts:
+            ax2.loglog(*zip(*pts, strict=True), label=label, **style)
     ax1.set_xlabel("CPU seconds")
     ax1.set_ylabel("max |ω − ω_exact| at t_error")
-    ax1.set_title("free body: work–precision")
-    ax1.legend(fontsize=7)
-    for label in dict.fromkeys(r.label for r in long_rows if r.family != "DOP853"):
-        pts = sorted((r.setting, max(r.energy, 1e-17)) for r in long_rows if r.label == label)
-        ax2.loglog(*zip(*pts, strict=True), "o-", label=label, ms=4)
+    ax1.set_title("free body: error against CPU time (lower left is better)")
+    ax1.grid(True, which="major", alpha=0.3)
     ax2.set_xlabel("h")
     ax2.set_ylabel("max relative energy error over the run")
-    ax2.set_title("free body: energy over n_steps")
-    ax2.legend(fontsize=7)
+    ax2.set_title("free body: energy error over the long run")
+    ax2.grid(True, which="major", alpha=0.3)
+    # one legend for both panels: DOP853 is on the left only (its energy is over time, not h)
+    handles = {}
+    for ax in (ax1, ax2):
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(label, handle)
+    ax2.legend(handles.values(), handles.keys(), fontsize=7, loc="center left",
+               bbox_to_anchor=(1.01, 0.5))  # fmt: skip
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     print(f"\nwrote {path}")

@@ -15,7 +15,7 @@ the height of its centre and its energy against time.
 
 Run::
 
-    python examples/die_on_table.py [--seconds 3] [--friction 1.0] [--order 1]
+    python examples/die_on_table.py [--seconds 3] [--friction 1.0] [--order 2]
                                     [--output docs/_static]
 """
 
@@ -67,7 +67,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--seconds", type=float, default=3.0)
     parser.add_argument("--h", type=float, default=0.01)
     parser.add_argument("--friction", type=float, default=1.0)
-    parser.add_argument("--order", type=int, default=1, help="s of Galerkin(s)")
+    parser.add_argument("--order", type=int, default=2, help="s of Galerkin(s)")
     parser.add_argument(
         "--output", type=Path, default=None, help="directory for the PNG (default: a new temp dir)"
     )
