@@ -141,6 +141,8 @@ def quaternion_rate(e: ArrayLike, omega: ArrayLike, frame: str = "body") -> NDAr
     r""":math:`\dot{\mathsf q} = \tfrac12 G^\top\omega` (body frame) or
     :math:`\tfrac12 E^\top\omega_s` (space frame), for unit quaternions ``(..., 4)``
     and angular velocities ``(..., 3)``."""
+    if frame not in ("body", "space"):
+        raise ValueError(f"frame must be 'body' or 'space', got {frame!r}")
     e = np.asarray(e, dtype=float)
     w = np.asarray(omega, dtype=float)
     e0, e1, e2, e3 = np.moveaxis(e, -1, 0)

@@ -880,3 +880,27 @@ def test_bad_joints_loads_and_systems_are_refused_with_a_clear_message():
                                                      gvi.Plane())])  # fmt: skip
     with pytest.raises(TypeError, match="joint of galerkin_vi.joints"):
         gvi.Multibody([a], joints=["hinge"])
+
+
+@pytest.mark.parametrize(
+    ("make", "match"),
+    [
+        (
+            lambda b: gvi.joints.Revolute(None, b, axis_a=[sp.Symbol("a"), 0, 1]),
+            "numeric direction",
+        ),
+        (lambda b: gvi.joints.Prismatic(None, b, rotation=[[1, 2], [3, 4]]), "3x3 rotation"),
+        (lambda b: gvi.joints.Fixed(None, b, rotation=np.diag([1.0, 2.0, 1.0])), "proper rotation"),
+        (lambda b: gvi.joints.Universal(None, b, axis_a=[1, 0, 0], axis_b=[1, 0, 0]), "perpendic"),
+    ],
+    ids=["symbolic axis", "rotation shape", "not a rotation", "parallel axes"],
+)
+def test_joints_refuse_axes_and_rotations_they_cannot_use(make, match):
+    body = gvi.RigidBody("b", mass=1.0, inertia=[1.0, 2.0, 2.5])
+    with pytest.raises(ValueError, match=match):
+        make(body)
+
+
+def test_quaternion_rate_refuses_an_unknown_frame():
+    with pytest.raises(ValueError, match="frame"):
+        quaternion_rate([1.0, 0, 0, 0], [1.0, 0, 0], "Body")

@@ -60,10 +60,24 @@ def _vec(x, what: str) -> sp.Matrix:
 def _unit(x, what: str) -> sp.Matrix:
     m = _vec(x, what)
     if m.free_symbols:
-        return m
+        raise ValueError(f"{what} must be a numeric direction, got {list(m)}")
     if m.dot(m) == 0:
         raise ValueError(f"{what} must be a nonzero direction")
     return m / sp.sqrt(m.dot(m))
+
+
+def _relative(C, what: str) -> sp.Matrix:
+    """The fixed relative rotation of a joint: the identity, or a checked 3x3 rotation."""
+    if C is None:
+        return sp.eye(3)
+    m = sp.Matrix(C)
+    if m.shape != (3, 3):
+        raise ValueError(f"{what} must be a 3x3 rotation matrix, got shape {m.shape}")
+    if not m.free_symbols:
+        a = np.array(m, dtype=float)
+        if np.abs(a.T @ a - np.eye(3)).max() > 1e-10 or np.linalg.det(a) <= 0:
+            raise ValueError(f"{what} must be a proper rotation (C^T C = I, det C = 1)")
+    return m
 
 
 def _complement(n: sp.Matrix) -> tuple[sp.Matrix, sp.Matrix]:
@@ -167,6 +181,11 @@ class Universal(_AxisJoint):
         super().__post_init__()
         if self.axis_b is self.axis_a:
             raise ValueError("Universal: give axis_b, perpendicular to axis_a")
+        if abs(float(self.axis_a.dot(self.axis_b))) > 1e-12:
+            raise ValueError(
+                f"Universal: axis_a {list(self.axis_a)} and axis_b {list(self.axis_b)} must be "
+                "perpendicular (in the reference pose)"
+            )
 
     def constraints(self) -> list[sp.Expr]:
         na = _direction(self.a, self.axis_a)
@@ -191,8 +210,7 @@ class Prismatic(Joint):
     def __post_init__(self) -> None:
         super().__post_init__()
         object.__setattr__(self, "axis", _unit(self.axis, "axis"))
-        C = sp.eye(3) if self.rotation is None else sp.Matrix(self.rotation)
-        object.__setattr__(self, "rotation", C)
+        object.__setattr__(self, "rotation", _relative(self.rotation, "rotation"))
 
     def places_b(self) -> bool:
         return False
@@ -215,8 +233,7 @@ class Fixed(Joint):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        C = sp.eye(3) if self.rotation is None else sp.Matrix(self.rotation)
-        object.__setattr__(self, "rotation", C)
+        object.__setattr__(self, "rotation", _relative(self.rotation, "rotation"))
 
     def constraints(self) -> list[sp.Expr]:
         return [*self.separation(), *_relative_rotation(self, self.rotation)]

@@ -16,9 +16,10 @@ set by one body and one joint, whatever the chain's length, and a step costs
 Three group orders are tried, and the one with the narrower band is kept:
 
 - the coordinates in their own order, each constraint after the last
-  coordinate it touches, or in the middle of the coordinates it touches (a joint
-  between the two bodies it joins: the order of a :class:`~galerkin_vi.Multibody`,
-  whose coordinates go body by body);
+  coordinate it touches;
+- the coordinates in their own order, each constraint in the middle of the
+  coordinates it touches (a joint between the two bodies it joins: the order of
+  a :class:`~galerkin_vi.Multibody`, whose coordinates go body by body);
 - reverse Cuthill–McKee on the groups' coupling graph, for systems whose own
   order is scattered.
 """
@@ -36,8 +37,19 @@ __all__ = ["MIN_SIZE", "constrained_band"]
 
 #: the smallest step system, s (n + m) unknowns, stored banded
 MIN_SIZE = 48
-#: names the ordering rules in the analysis cache's key: a change of them is a new entry
-_ORDERING = 2
+
+
+def _sources_hash() -> str:
+    """A hash of the code that builds the order (this module and the sparsity pattern's):
+    part of the analysis cache's key, so that a change of it is a new entry."""
+    import hashlib
+    from pathlib import Path
+
+    here = Path(__file__).resolve()
+    h = hashlib.sha256()
+    for path in (here, here.parent.parent / "codegen" / "spec.py"):
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
 
 
 def _pairs(matrix: sp.MatrixBase) -> list[tuple[int, int]]:
@@ -75,16 +87,20 @@ def _group_order(n: int, hessian, jacobian) -> NDArray[np.int64]:
 
 
 def constrained_band(system: LagrangianSystem, degree: int) -> tuple | None:
-    """The ``band`` argument of the constrained loop for ``system`` and ``degree`` control
-    points per step (:mod:`galerkin_vi.loops.constrained_band`), or None when dense
-    storage is cheaper (the band is not narrower than a third of the matrix).
+    """The ``band`` argument of the constrained loop for ``system`` and a method of
+    ``degree`` s (s unknown stages per step; :mod:`galerkin_vi.loops.constrained_band`),
+    or None when dense storage is cheaper (the band is not narrower than a third of the
+    matrix).
 
     Kept with the system's analysis (:meth:`LagrangianSystem.remember`).
     """
-    key = f"constrained_band_{_ORDERING}_{degree}"
+    key = f"constrained_band_{_sources_hash()}_{degree}"
     known = system.recalled(key)
-    if known is not None:
-        return known or None
+    size = degree * (system.n + system.m)
+    if known == ():
+        return None
+    if known is not None and len(known) == 8 and known[0].size == size:
+        return known
     band = _band(system, degree)
     system.remember(key, band or ())
     return band
