@@ -170,6 +170,46 @@ def test_users_numba_code_compiles_with_numbas_originals_after_tangent_runs():
     assert result == dict.fromkeys(result, True) and len(result) == 6
 
 
+def test_users_numba_code_compiles_with_numbas_originals_after_multibody_runs():
+    # the constrained loop's band variant (a chain), a rigid body on a joint and a body
+    # contact load or compile as the other loops do: nothing stays installed
+    result = _python(
+        """
+        import json
+        import numpy as np
+        from numba import njit
+        before = originals()
+        import galerkin_vi as gvi
+        from galerkin_vi.tools.warmup import _runs
+
+        label, rods, method, _, q0, v0 = next(r for r in _runs() if r[0] == "constrained, banded")
+        integrator = gvi.Integrator(rods, method)
+        chain = integrator.integrate(q0, v0=v0, h=0.01, n_steps=5)
+        assert chain.success and integrator.run_spec.band is not None
+        ball = gvi.RigidBody("ball", mass=1.0, inertia=[0.4, 0.4, 0.4])
+        mb = gvi.Multibody([ball], gravity=[0, 0, -9.81], contacts=[
+            gvi.BodyContact(gvi.Sphere(ball, 0.1), gvi.Plane([0, 0, 1], 0.0), restitution=0.5)])
+        q0, v0 = mb.state(positions={"ball": [0, 0, 0.2]}, angular_velocities={"ball": [0, 1, 0]})
+        bounce = gvi.Integrator(mb.system, gvi.Galerkin(2)).integrate(q0, v0=v0, h=0.01,
+                                                                      n_steps=30)
+        assert bounce.success and len(bounce.impacts) >= 1
+
+        @njit
+        def user_sum(a):
+            total = 0.0
+            for value in a:
+                total += value * value
+            return total
+
+        value = user_sum(np.arange(4.0))
+        same_now = same(before, originals())
+        same_now["value"] = value == 14.0
+        print(json.dumps(same_now))
+        """
+    )
+    assert result == dict.fromkeys(result, True) and len(result) == 6
+
+
 def test_compiling_installs_its_replacements_only_inside_and_restores_them():
     from numba.core import inline_closurecall, ir, postproc
 
