@@ -38,14 +38,35 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "body_rates_matrix",
     "hat",
+    "orthonormal_complement",
     "matrix_to_quaternion",
     "quaternion_rate",
     "quaternion_to_matrix",
     "space_rates_matrix",
     "symbolic_hat",
     "symbolic_quaternion_matrix",
+    "symbolic_vector",
     "symbolic_vee",
 ]
+
+
+def symbolic_vector(x, name: str) -> sp.Matrix:
+    """``x`` as a 3x1 SymPy column; ValueError naming ``name`` if it is not a 3-vector."""
+    m = sp.Matrix(x)
+    if m.shape not in ((3, 1), (1, 3)):
+        raise ValueError(f"{name} must be a 3-vector, got shape {m.shape}")
+    return m.reshape(3, 1)
+
+
+def orthonormal_complement(n: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    r"""Unit vectors :math:`u, w` with :math:`(n, u, w)` a right-handed orthonormal frame,
+    for a unit 3-vector ``n``: :math:`u = n\times e/|n\times e|` with :math:`e` the axis
+    least aligned with :math:`n`, :math:`w = n\times u`."""
+    a = np.asarray(n, dtype=float).ravel()
+    e = np.eye(3)[int(np.argmin(np.abs(a)))]
+    u = np.cross(a, e)
+    u /= np.linalg.norm(u)
+    return u, np.cross(a, u)
 
 
 def symbolic_hat(w) -> sp.Matrix:

@@ -904,3 +904,13 @@ def test_joints_refuse_axes_and_rotations_they_cannot_use(make, match):
 def test_quaternion_rate_refuses_an_unknown_frame():
     with pytest.raises(ValueError, match="frame"):
         quaternion_rate([1.0, 0, 0, 0], [1.0, 0, 0], "Body")
+
+
+@pytest.mark.parametrize("rotation", ["quaternion", "matrix"])
+def test_body_rotation_is_the_rotation_matrix_in_the_coordinates(rotation):
+    body = gvi.RigidBody("b", mass=1.0, inertia=[1.0, 2.0, 2.5], rotation=rotation)
+    assert body.embedding == rotation
+    R = random_rotations(1)[0]
+    coords = body.coordinates_of([0.1, 0.2, 0.3], R)
+    value = np.array(body.rotation.subs(dict(zip(body.q, coords, strict=True))), dtype=float)
+    np.testing.assert_allclose(value, R, atol=1e-14)

@@ -47,7 +47,6 @@ control points, not between them).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -61,6 +60,7 @@ from ..rotations import (
     quaternion_to_matrix,
     space_rates_matrix,
     symbolic_quaternion_matrix,
+    symbolic_vector,
     symbolic_vee,
 )
 
@@ -112,7 +112,6 @@ def _inertia_tensor(inertia, name: str) -> sp.Matrix:
     return J
 
 
-@dataclass(frozen=True, eq=False)
 class RigidBody:
     r"""A rigid body: mass, inertia and the coordinates of its pose.
 
@@ -142,7 +141,9 @@ class RigidBody:
         ``_dot``.
     position, velocity : sympy.Matrix
         :math:`x` and :math:`\dot x`.
-    rotation_matrix : sympy.Matrix
+    embedding : str
+        ``"quaternion"`` or ``"matrix"`` (the ``rotation`` argument).
+    rotation : sympy.Matrix
         :math:`R` in the coordinates (:math:`R(\mathsf q)` for quaternions).
     angular_velocity, angular_velocity_space : sympy.Matrix
         :math:`\omega` (body frame) and :math:`\omega_s = R\omega` in the coordinates
@@ -163,33 +164,39 @@ class RigidBody:
     b_e0**2 - b_e1**2 - b_e2**2 + b_e3**2 + b_z
     """
 
-    name: str
-    mass: float | sp.Expr
-    inertia: object
-    rotation: str = "quaternion"
-    inertia_tensor: sp.Matrix = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.name, str) or not self.name.isidentifier():
-            raise ValueError(f"RigidBody: name must be an identifier, got {self.name!r}")
-        if self.rotation not in ROTATIONS:
+    def __init__(
+        self, name: str, mass: float | sp.Expr, inertia: object, rotation: str = "quaternion"
+    ) -> None:
+        if not isinstance(name, str) or not name.isidentifier():
+            raise ValueError(f"RigidBody: name must be an identifier, got {name!r}")
+        if rotation not in ROTATIONS:
             raise ValueError(
-                f"RigidBody({self.name!r}): rotation must be one of {ROTATIONS}, "
-                f"got {self.rotation!r}"
+                f"RigidBody({name!r}): rotation must be one of {ROTATIONS}, got {rotation!r}"
             )
-        mass = sp.sympify(self.mass)
-        if not mass.free_symbols and not float(mass) > 0:
-            raise ValueError(f"RigidBody({self.name!r}): mass must be > 0, got {self.mass!r}")
-        object.__setattr__(self, "mass", mass)
-        object.__setattr__(self, "inertia_tensor", _inertia_tensor(self.inertia, self.name))
+        value = sp.sympify(mass)
+        if not value.free_symbols and not float(value) > 0:
+            raise ValueError(f"RigidBody({name!r}): mass must be > 0, got {mass!r}")
+        self.name = name
+        self.mass = value
+        self.inertia = inertia
+        #: the embedding of the attitude, ``"quaternion"`` or ``"matrix"``
+        self.embedding = rotation
+        #: :math:`J`, the 3x3 body-frame inertia tensor (sympy.Matrix)
+        self.inertia_tensor = _inertia_tensor(inertia, name)
+
+    def __repr__(self) -> str:
+        return (
+            f"RigidBody({self.name!r}, mass={self.mass}, inertia={self.inertia!r}, "
+            f"rotation={self.embedding!r})"
+        )
 
     def __reduce__(self):
-        return (type(self), (self.name, self.mass, self.inertia, self.rotation))
+        return (type(self), (self.name, self.mass, self.inertia, self.embedding))
 
     @cached_property
     def rotation_coordinates(self) -> tuple[sp.Symbol, ...]:
         """The symbols of the attitude (quaternion ``e0..e3`` or matrix ``r11..r33``)."""
-        if self.rotation == "quaternion":
+        if self.embedding == "quaternion":
             names = [f"{self.name}_e{i}" for i in range(4)]
         else:
             names = [f"{self.name}_r{i}{j}" for i in range(1, 4) for j in range(1, 4)]
@@ -213,16 +220,16 @@ class RigidBody:
         return sp.Matrix(self.v[:3])
 
     @cached_property
-    def rotation_matrix(self) -> sp.Matrix:
+    def rotation(self) -> sp.Matrix:
         r = self.q[3:]
-        if self.rotation == "quaternion":
+        if self.embedding == "quaternion":
             return symbolic_quaternion_matrix(r)
         return sp.Matrix(3, 3, r)
 
     @cached_property
     def rotation_rate(self) -> sp.Matrix:
         r""":math:`\dot R` in the coordinates and velocities."""
-        R = self.rotation_matrix
+        R = self.rotation
         rate = sp.zeros(3, 3)
         for s, sd in zip(self.q[3:], self.v[3:], strict=True):
             rate += R.diff(s) * sd
@@ -232,42 +239,42 @@ class RigidBody:
     def angular_velocity(self) -> sp.Matrix:
         r"""Body angular velocity :math:`\omega`: :math:`2G\dot{\mathsf q}` or
         :math:`\operatorname{vee}(R^\top\dot R)` (its skew part)."""
-        if self.rotation == "quaternion":
+        if self.embedding == "quaternion":
             return 2 * body_rates_matrix(self.q[3:]) * sp.Matrix(self.v[3:])
-        return symbolic_vee(self.rotation_matrix.T * self.rotation_rate)
+        return symbolic_vee(self.rotation.T * self.rotation_rate)
 
     @cached_property
     def angular_velocity_space(self) -> sp.Matrix:
         r"""Space angular velocity :math:`\omega_s = R\omega`: :math:`2E\dot{\mathsf q}` or
         :math:`\operatorname{vee}(\dot R R^\top)`."""
-        if self.rotation == "quaternion":
+        if self.embedding == "quaternion":
             return 2 * space_rates_matrix(self.q[3:]) * sp.Matrix(self.v[3:])
-        return symbolic_vee(self.rotation_rate * self.rotation_matrix.T)
+        return symbolic_vee(self.rotation_rate * self.rotation.T)
 
     def point(self, r_body: Sequence) -> sp.Matrix:
         r"""The space position :math:`x + R\,r` of the body-fixed point ``r_body``."""
-        return self.position + self.rotation_matrix * _vector(r_body, "r_body")
+        return self.position + self.rotation * symbolic_vector(r_body, "r_body")
 
     def point_velocity(self, r_body: Sequence) -> sp.Matrix:
         r"""The space velocity :math:`\dot x + \dot R\,r` of the body-fixed point ``r_body``."""
-        return self.velocity + self.rotation_rate * _vector(r_body, "r_body")
+        return self.velocity + self.rotation_rate * symbolic_vector(r_body, "r_body")
 
     def axis(self, a_body: Sequence) -> sp.Matrix:
         r"""The space direction :math:`R\,a` of the body-fixed direction ``a_body``."""
-        return self.rotation_matrix * _vector(a_body, "a_body")
+        return self.rotation * symbolic_vector(a_body, "a_body")
 
     @cached_property
     def augmentation_constant(self) -> sp.Expr:
         r"""The constant :math:`c` of the augmentation (module notes)."""
         J = self.inertia_tensor
-        if self.rotation == "quaternion":
+        if self.embedding == "quaternion":
             return sp.Rational(4, 3) * J.trace()
         return sp.Rational(2, 3) * J.trace()
 
     @cached_property
     def needs_augmentation(self) -> bool:
         r"""Whether the kinetic energy carries the augmentation term (module notes)."""
-        if self.rotation == "quaternion":
+        if self.embedding == "quaternion":
             return True
         Jd = self.inertia_tensor.trace() / 2 * sp.eye(3) - self.inertia_tensor
         if Jd.free_symbols:
@@ -284,7 +291,7 @@ class RigidBody:
         T = m * xd.dot(xd) / 2
         c = self.augmentation_constant
         rd = sp.Matrix(self.v[3:])
-        if self.rotation == "quaternion":
+        if self.embedding == "quaternion":
             G = body_rates_matrix(self.q[3:])
             T += 2 * (rd.T * G.T * J * G * rd)[0, 0]
             T += c / 2 * sp.Matrix(self.q[3:]).dot(rd) ** 2
@@ -293,7 +300,7 @@ class RigidBody:
         Jd = J.trace() / 2 * sp.eye(3) - J
         T += (Rd * Jd * Rd.T).trace() / 2
         if self.needs_augmentation:
-            W = self.rotation_matrix.T * Rd
+            W = self.rotation.T * Rd
             S = (W + W.T) / 2
             T += c / 2 * sum(x**2 for x in S)
         return T
@@ -301,9 +308,9 @@ class RigidBody:
     @cached_property
     def constraints(self) -> tuple[sp.Expr, ...]:
         r = self.q[3:]
-        if self.rotation == "quaternion":
+        if self.embedding == "quaternion":
             return ((sum(x**2 for x in r) - 1) / 2,)
-        R = self.rotation_matrix
+        R = self.rotation
         C = (R.T * R - sp.eye(3)) / 2
         return tuple(C[i, j] for i in range(3) for j in range(i, 3))
 
@@ -330,7 +337,7 @@ class RigidBody:
                 f"{self.name}: a rotation must be a 3x3 matrix or a quaternion, got shape "
                 f"{rot.shape}"
             )
-        if self.rotation == "quaternion":
+        if self.embedding == "quaternion":
             e = rot if rot.shape == (4,) else matrix_to_quaternion(R)
             return np.concatenate([x, e])
         return np.concatenate([x, R.ravel()])
@@ -345,15 +352,8 @@ class RigidBody:
         xd = np.asarray(velocity, dtype=float).reshape(3)
         w = np.asarray(angular_velocity, dtype=float).reshape(3)
         r = np.asarray(coords, dtype=float)[3:]
-        if self.rotation == "quaternion":
+        if self.embedding == "quaternion":
             return np.concatenate([xd, quaternion_rate(r, w, frame)])
         R = r.reshape(3, 3)
         Rd = R @ hat(w) if frame == "body" else hat(w) @ R
         return np.concatenate([xd, Rd.ravel()])
-
-
-def _vector(r, name: str) -> sp.Matrix:
-    vec = sp.Matrix(r)
-    if vec.shape not in ((3, 1), (1, 3)):
-        raise ValueError(f"{name} must be a 3-vector, got shape {vec.shape}")
-    return vec.reshape(3, 1)

@@ -44,21 +44,14 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from ..rotations import symbolic_vee
+from ..rotations import orthonormal_complement, symbolic_vector, symbolic_vee
 from .body import RigidBody
 
 __all__ = ["Fixed", "Joint", "Prismatic", "Revolute", "Spherical", "Universal"]
 
 
-def _vec(x, what: str) -> sp.Matrix:
-    m = sp.Matrix(x)
-    if m.shape not in ((3, 1), (1, 3)):
-        raise ValueError(f"{what} must be a 3-vector, got shape {m.shape}")
-    return m.reshape(3, 1)
-
-
 def _unit(x, what: str) -> sp.Matrix:
-    m = _vec(x, what)
+    m = symbolic_vector(x, what)
     if m.free_symbols:
         raise ValueError(f"{what} must be a numeric direction, got {list(m)}")
     if m.dot(m) == 0:
@@ -82,11 +75,7 @@ def _relative(C, what: str) -> sp.Matrix:
 
 def _complement(n: sp.Matrix) -> tuple[sp.Matrix, sp.Matrix]:
     """Two unit vectors completing the unit vector ``n`` to an orthonormal frame."""
-    a = np.array(n, dtype=float).ravel()
-    e = np.eye(3)[int(np.argmin(np.abs(a)))]
-    u = np.cross(a, e)
-    u /= np.linalg.norm(u)
-    w = np.cross(a, u)
+    u, w = orthonormal_complement(np.array(n, dtype=float))
     return sp.Matrix(u), sp.Matrix(w)
 
 
@@ -99,7 +88,7 @@ def _direction(body: RigidBody | None, axis: sp.Matrix) -> sp.Matrix:
 
 
 def _rotation(body: RigidBody | None) -> sp.Matrix:
-    return sp.eye(3) if body is None else body.rotation_matrix
+    return sp.eye(3) if body is None else body.rotation
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,8 +112,8 @@ class Joint:
             raise ValueError(f"{type(self).__name__}: a and b cannot both be the ground")
         if self.a is self.b:
             raise ValueError(f"{type(self).__name__}: a body cannot be joined to itself")
-        object.__setattr__(self, "point_a", _vec(self.point_a, "point_a"))
-        object.__setattr__(self, "point_b", _vec(self.point_b, "point_b"))
+        object.__setattr__(self, "point_a", symbolic_vector(self.point_a, "point_a"))
+        object.__setattr__(self, "point_b", symbolic_vector(self.point_b, "point_b"))
 
     @property
     def bodies(self) -> tuple[RigidBody, ...]:

@@ -52,7 +52,7 @@ def body_motion(body: RigidBody, t, q_rows, v_rows) -> BodyMotion:
     q = np.asarray(q_rows, dtype=float)
     v = np.asarray(v_rows, dtype=float)
     x, xd, r, rd = q[:, :3], v[:, :3], q[:, 3:], v[:, 3:]
-    if body.rotation == "quaternion":
+    if body.embedding == "quaternion":
         R = quaternion_to_matrix(r)
         quat = r / np.linalg.norm(r, axis=1, keepdims=True)
         e0, e1, e2, e3 = r.T

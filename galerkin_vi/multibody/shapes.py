@@ -33,17 +33,10 @@ import numpy as np
 import sympy as sp
 
 from ..model.contacts import Contact
-from ..rotations import symbolic_hat
+from ..rotations import orthonormal_complement, symbolic_hat, symbolic_vector
 from .body import RigidBody
 
 __all__ = ["BodyContact", "BodyPoint", "Plane", "Sphere"]
-
-
-def _vec(x, what: str) -> sp.Matrix:
-    m = sp.Matrix(x)
-    if m.shape not in ((3, 1), (1, 3)):
-        raise ValueError(f"{what} must be a 3-vector, got shape {m.shape}")
-    return m.reshape(3, 1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,7 +54,7 @@ class Sphere:
         if not np.isfinite(r) or r < 0:
             raise ValueError(f"{type(self).__name__}: radius must be >= 0, got {self.radius!r}")
         object.__setattr__(self, "radius", r)
-        object.__setattr__(self, "center", _vec(self.center, "center"))
+        object.__setattr__(self, "center", symbolic_vector(self.center, "center"))
 
     def center_position(self) -> sp.Matrix:
         return self.body.point(self.center)
@@ -98,11 +91,8 @@ class Plane:
         object.__setattr__(self, "offset", float(self.offset))
 
     def tangents(self) -> tuple[sp.Matrix, sp.Matrix]:
-        n = np.array(self.normal)
-        e = np.eye(3)[int(np.argmin(np.abs(n)))]
-        t1 = np.cross(n, e)
-        t1 /= np.linalg.norm(t1)
-        return sp.Matrix(t1), sp.Matrix(np.cross(n, t1))
+        t1, t2 = orthonormal_complement(self.normal)
+        return sp.Matrix(t1), sp.Matrix(t2)
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,7 +137,7 @@ class BodyContact:
             nu = d / dist
             gap = dist - self.shape.radius - self.other.radius
             rel = self.shape.surface_velocity(nu) - self.other.surface_velocity(-nu)
-            e = _vec(self.reference_axis, "reference_axis")
+            e = symbolic_vector(self.reference_axis, "reference_axis")
             t1 = nu.cross(e)
             t1 = t1 / sp.sqrt(t1.dot(t1))
             tangents = (t1, nu.cross(t1))

@@ -271,17 +271,17 @@ class Multibody:
 
 def _rotation_generator(body: RigidBody, a: sp.Matrix, frame: str) -> list[sp.Expr]:
     r = body.q[3:]
-    if body.rotation == "quaternion":
+    if body.embedding == "quaternion":
         M = space_rates_matrix(r) if frame == "space" else body_rates_matrix(r)
         return list(M.T * a / 2)
-    R = body.rotation_matrix
+    R = body.rotation
     delta = symbolic_hat(a) * R if frame == "space" else R * symbolic_hat(a)
     return list(delta)
 
 
 def _rotation_of(body: RigidBody, coords: NDArray) -> NDArray:
     r = coords[3:]
-    return quaternion_to_matrix(r) if body.rotation == "quaternion" else r.reshape(3, 3)
+    return quaternion_to_matrix(r) if body.embedding == "quaternion" else r.reshape(3, 3)
 
 
 def _placed(mb: Multibody, positions, velocities, R, ws) -> tuple[dict, dict]:
