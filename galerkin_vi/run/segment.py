@@ -13,7 +13,6 @@ import numpy as np
 
 from ..errors import DegenerateLagrangianError
 from ..loops.abi import LoopResult
-from ..model.system import is_regular
 from ..reference import numpy as numpy_backend
 from ..reference import numpy_constrained
 from .outputs import RunOutputs
@@ -59,19 +58,17 @@ def run_segment(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
 
 
 def _explicit(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
-    """Störmer–Verlet with :math:`M^{-1}` formed once (a diagonal M as its diagonal only)."""
+    """Störmer–Verlet with :math:`M^{-1}` formed once per parameter vector (a diagonal M
+    as its diagonal only), kept by the run spec's Legendre transform."""
     from ..loops import explicit_loop
 
-    system, n = spec.system, spec.system.n
-    mass = system.evaluate("Lvv", segment.t0, segment.q0, np.zeros(n), segment.prm).reshape(n, n)
-    if not is_regular(mass):
+    mass, inverse, diagonal = spec.legendre.inverse_mass(segment.prm)
+    if inverse is None:
         raise DegenerateLagrangianError(f"the mass matrix d2L/dv2 = {mass} is singular")
     fn, _, _, periodic = spec.model
     # switches (loops.traits): a run-time test of either costs a quarter of a step here
     periodic = periodic if periodic.any() else None
-    inverse = np.linalg.inv(mass)
-    # a writable copy: numba types a read-only view as another (compiled) variant
-    diagonal = np.diag(inverse).copy() if spec.diagonal_mass else None
+    diagonal = diagonal if spec.diagonal_mass else None
     time_dependent = None if spec.autonomous else True
     s = segment
     return LoopResult(
