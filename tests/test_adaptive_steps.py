@@ -83,7 +83,7 @@ def test_no_failure_when_the_motion_is_fast_at_the_start(arenstorf):
 def test_light_bodies_beside_the_clock_converge():
     """Masses of 1e-9 (the outer solar system's Pluto against the Sun): the clock's term
     (c/2)(zeta - g)^2 with c = 1 swamped their kinetic block and no first step converged;
-    c is the lightest coordinate's weight now. The orbit is Kepler's, scaled."""
+    c is proportional to the lightest mass now. The orbit is Kepler's, scaled."""
     m = 1e-9
     kepler = gvi.LagrangianSystem(
         m * ((vx**2 + vy**2) / 2 + 1 / sp.sqrt(x**2 + y**2)), [x, y], [vx, vy]
