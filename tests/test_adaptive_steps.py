@@ -60,14 +60,15 @@ def test_return_error_falls_with_the_step_down_to_the_floor(arenstorf, s):
     solution. The stage velocities' fixed point with the exact mass matrix converges."""
     g = gvi.encounter_scaling([R1, R2], 1.5)
     adaptive = gvi.AdaptiveIntegrator(arenstorf, gvi.Galerkin(s, gvi.gauss_legendre(s)), g=g)
-    results = return_errors(adaptive, (0.1, 0.05, 0.02, 0.01, 0.005))
+    results = return_errors(adaptive, (0.1, 0.05, 0.02, 0.01, 0.005, 0.002))
     errors = [e for e, _ in results]
     for coarse, fine in zip(errors, errors[1:], strict=False):
         assert fine <= max(coarse, FLOOR), errors
     assert errors[-1] <= FLOOR
-    # the cost of a step does not grow as h shrinks
+    # the cost of a step does not grow as h shrinks (measured 7.0 .. 1.7 its/step for
+    # Gauss(4), 5.2 .. 2.0 for Gauss(6))
     its = [i for _, i in results]
-    assert max(its[1:]) <= its[0] + 0.5, its
+    assert max(its[1:]) <= its[0] + 0.5 and its[-1] < its[0], its
 
 
 def test_no_failure_when_the_motion_is_fast_at_the_start(arenstorf):
@@ -167,3 +168,4 @@ def test_default_g_composes_with_the_run_options_and_pickles(arenstorf):
     np.testing.assert_array_equal(again.integrate(Q0, V0, h=0.05, t_final=2.0).q[-1], dense.q[-1])
     with pytest.raises(ValueError, match="tangent"):
         adaptive.integrate(Q0, V0, h=0.05, n_steps=3, tangent=True)
+
