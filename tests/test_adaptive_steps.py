@@ -168,4 +168,3 @@ def test_default_g_composes_with_the_run_options_and_pickles(arenstorf):
     np.testing.assert_array_equal(again.integrate(Q0, V0, h=0.05, t_final=2.0).q[-1], dense.q[-1])
     with pytest.raises(ValueError, match="tangent"):
         adaptive.integrate(Q0, V0, h=0.05, n_steps=3, tangent=True)
-
