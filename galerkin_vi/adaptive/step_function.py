@@ -115,20 +115,23 @@ def singular_distances(system: LagrangianSystem) -> list[sp.Expr]:
     defaults = dict(zip(system.params, system.param_defaults, strict=True))
     velocities = set(system.v)
     found: list[sp.Expr] = []
-    seen: list[sp.Poly] = []
+    seen: set[sp.Expr] = set()
     for node in sp.preorder_traversal(system.L):
         if not (isinstance(node, sp.Pow) and node.exp.is_number and node.exp < 0):
             continue
         base = node.base
         if not (base.free_symbols & set(q)) or base.free_symbols & velocities:
             continue
-        squared = _squared_distance(base, q, defaults)
+        # only the coordinates in the base: a pair distance of an N-body system has 4-6
+        coordinates = [s for s in q if s in base.free_symbols]
+        squared = _squared_distance(base, coordinates, defaults)
         if squared is None:
             continue
-        poly = sp.Poly(sp.expand(squared), *q)
-        if any(_proportional(poly, other) for other in seen):
+        # one distance per base up to a constant factor: the monic polynomial is the key
+        key = sp.Poly(sp.expand(squared), *coordinates).monic().as_expr()
+        if key in seen:
             continue
-        seen.append(poly)
+        seen.add(key)
         found.append(sp.sqrt(squared))
     return found
 
@@ -138,38 +141,41 @@ def _squared_distance(base: sp.Expr, q: list[sp.Symbol], defaults: dict) -> sp.E
     expanded = sp.expand(base)
     if not expanded.is_polynomial(*q):
         return None
-    degree = sp.Poly(expanded, *q).total_degree()
+    poly = sp.Poly(expanded, *q)
+    degree = poly.total_degree()
     if degree == 1:
         return base**2
-    if degree == 2 and _reaches_zero(expanded, q, defaults):
+    if degree == 2 and _reaches_zero(poly, defaults):
         return base
     return None
 
 
-def _reaches_zero(quadratic: sp.Expr, q: list[sp.Symbol], defaults: dict) -> bool:
+def _reaches_zero(poly: sp.Poly, defaults: dict) -> bool:
     r"""Whether :math:`B = q^T A q + b^T q + c` (at the parameters' defaults) has
     :math:`A \succeq 0` and :math:`\min_q B = c - \tfrac14 b^T A^+ b = 0`."""
-    numeric = quadratic.xreplace(defaults)
-    if numeric.free_symbols - set(q):
-        return False
-    hessian = np.array(sp.hessian(numeric, q).tolist(), dtype=float)
-    at_zero = {s: 0 for s in q}
-    gradient = np.array([float(sp.diff(numeric, s).xreplace(at_zero)) for s in q])
-    constant = float(numeric.xreplace(at_zero))
-    a = 0.5 * hessian
-    eigenvalues = np.linalg.eigvalsh(a)
-    size = max(1.0, abs(constant), float(np.abs(a).max()), float(np.abs(gradient).max()))
-    if eigenvalues.min() < -_VANISHING * size:
+    n = len(poly.gens)
+    a = np.zeros((n, n))
+    b = np.zeros(n)
+    c = 0.0
+    for powers, coefficient in poly.terms():
+        value = sp.sympify(coefficient).xreplace(defaults)
+        if not value.is_number:
+            return False
+        value = float(value)
+        where = [k for k, power in enumerate(powers) for _ in range(power)]
+        if len(where) == 2:
+            i, j = where
+            a[i, j] += 0.5 * value
+            a[j, i] += 0.5 * value
+        elif len(where) == 1:
+            b[where[0]] += value
+        else:
+            c += value
+    size = max(1.0, abs(c), float(np.abs(a).max()), float(np.abs(b).max()))
+    if np.linalg.eigvalsh(a).min() < -_VANISHING * size:
         return False
     # the minimiser solves 2 A q = -b; b outside the range of A: B is unbounded below
-    q_min = np.linalg.lstsq(2.0 * a, -gradient, rcond=None)[0]
-    if np.abs(2.0 * a @ q_min + gradient).max() > 1e-9 * size:
+    q_min = np.linalg.lstsq(2.0 * a, -b, rcond=None)[0]
+    if np.abs(2.0 * a @ q_min + b).max() > 1e-9 * size:
         return False
-    minimum = constant + 0.5 * float(gradient @ q_min)
-    return abs(minimum) <= 1e-9 * size
-
-
-def _proportional(a: sp.Poly, b: sp.Poly) -> bool:
-    """Whether two polynomials differ by a constant factor only."""
-    ratio = sp.cancel(a.as_expr() / b.as_expr())
-    return bool(ratio.is_number)
+    return abs(c + 0.5 * float(b @ q_min)) <= 1e-9 * size
