@@ -32,6 +32,8 @@ import sympy as sp
 # otherwise land on the first system a process builds
 import sympy.tensor.tensor  # noqa: E402, F401  isort: skip
 
+from .terms import repeated_terms, substitute  # noqa: E402
+
 __all__ = [
     "ConstraintPieces",
     "constraint_pieces",
@@ -52,12 +54,12 @@ class PointwisePieces:
     ----------
     L : sympy.Expr
     Lq, Lv : sympy.Matrix, shape (n, 1)
-    Lqq, Lqv, Lvv : sympy.ImmutableSparseMatrix, shape (n, n)
+    Lqq, Lqv, Lvv : sympy.SparseMatrix, shape (n, n)
         ``Lqv[a, b]`` is :math:`\\partial^2 L / \\partial q_a \\partial v_b`; entries
         that are identically zero are not stored.
     f : sympy.Matrix, shape (n, 1), or None
         External generalised forces :math:`f(t, q, v)`; ``None`` without forces.
-    fq, fv : sympy.ImmutableSparseMatrix, shape (n, n), or None
+    fq, fv : sympy.SparseMatrix, shape (n, n), or None
         :math:`\\partial f_a/\\partial q_b` and :math:`\\partial f_a/\\partial v_b`.
     """
 
@@ -177,7 +179,7 @@ def _gradient(expr: sp.Expr, symbols: list[sp.Symbol], derive: _TermDerivatives)
 
 def _jacobian(
     column: sp.Matrix, symbols: list[sp.Symbol], derive: _TermDerivatives
-) -> sp.ImmutableSparseMatrix:
+) -> sp.SparseMatrix:
     """Sparse Jacobian of ``column`` by ``symbols``: only structural nonzeros are stored."""
     index = {s: i for i, s in enumerate(symbols)}
     entries = {}
@@ -190,10 +192,20 @@ def _jacobian(
             d = sp.Add(*terms)
             if d != 0:
                 entries[(a, b)] = d
-    return sp.ImmutableSparseMatrix(len(column), len(symbols), entries)
+    return _sparse(len(column), len(symbols), entries)
 
 
-def _sparse_sum(a: sp.MatrixBase, b: sp.MatrixBase) -> sp.ImmutableSparseMatrix:
+def _sparse(rows: int, cols: int, entries: dict) -> sp.SparseMatrix:
+    """A sparse matrix of ``entries``, read-only by convention.
+
+    SymPy's immutable sparse matrix sorts its entries by their expressions'
+    sort keys when built (0.5 ms an entry of a spring's second derivative:
+    seconds for a lattice of hundreds of masses); the mutable one does not.
+    """
+    return sp.SparseMatrix(rows, cols, entries)
+
+
+def _sparse_sum(a: sp.MatrixBase, b: sp.MatrixBase) -> sp.SparseMatrix:
     """Sum of two sparse matrices, storing only entries that do not cancel."""
     entries = dict(a.todok())
     for key, e in b.todok().items():
@@ -202,7 +214,7 @@ def _sparse_sum(a: sp.MatrixBase, b: sp.MatrixBase) -> sp.ImmutableSparseMatrix:
             entries.pop(key, None)
         else:
             entries[key] = total
-    return sp.ImmutableSparseMatrix(a.rows, a.cols, entries)
+    return _sparse(a.rows, a.cols, entries)
 
 
 def pointwise_pieces(
@@ -217,24 +229,87 @@ def pointwise_pieces(
     are not identically zero (a chain of N masses has O(N) of them).
     """
     derive = _TermDerivatives()
-    Lq = _gradient(L, q, derive)
-    Lv = _gradient(L, v, derive)
+    Lq, Lv, Lqq, Lqv, Lvv = _lagrangian_derivatives(L, q, v)
     f = fq = fv = None
     if forces is not None:
         f = sp.Matrix(forces)
         fq = _jacobian(f, q, derive)
         fv = _jacobian(f, v, derive)
-    return PointwisePieces(
-        L=L,
-        Lq=Lq,
-        Lv=Lv,
-        Lqq=_jacobian(Lq, q, derive),
-        Lqv=_jacobian(Lq, v, derive),
-        Lvv=_jacobian(Lv, v, derive),
-        f=f,
-        fq=fq,
-        fv=fv,
-    )
+    return PointwisePieces(L=L, Lq=Lq, Lv=Lv, Lqq=Lqq, Lqv=Lqv, Lvv=Lvv, f=f, fq=fq, fv=fv)
+
+
+def _lagrangian_derivatives(L: sp.Expr, q: list[sp.Symbol], v: list[sp.Symbol]) -> tuple:
+    r""":math:`L_q, L_v` (columns) and :math:`L_{qq}, L_{qv}, L_{vv}` (sparse) of ``L``.
+
+    The terms of ``L`` are grouped by shape (:func:`~.terms.repeated_terms`:
+    one template on the index tuples of its instances, the two powers of one
+    spring summed into one template); each template's gradient and Hessian
+    are taken once, over placeholders, and instantiated per term by
+    substitution. Taking the second derivatives from the template, not from
+    the instantiated first derivatives, halves the substitutions, which are
+    what a lattice's analysis costs (each rebuilt power of a sum queries
+    SymPy's assumptions).
+    """
+    index = {s: a for a, s in enumerate(q)} | {s: a for a, s in enumerate(v)}
+    others = tuple(sorted(L.free_symbols - set(index), key=sp.default_sort_key))
+    groups, rest = repeated_terms(L, tuple(q), tuple(v), others, None, min_count=1)
+    first: dict[tuple[str, int], list[sp.Expr]] = {}
+    second: dict[tuple[str, int, int], list[sp.Expr]] = {}
+    symbols = {"q": tuple(q), "v": tuple(v), "prm": others}
+    for group in groups:
+        derivatives = _template_derivatives(group)
+        flat = [e for _, d, seconds in derivatives for e in (d, *(dd for _, dd in seconds))]
+        for row in group.table:
+            mapping = {
+                z: symbols[kind][int(j)]
+                for z, kind, j in zip(group.arguments, group.kinds, row, strict=True)
+            }
+            values = iter(substitute(flat, mapping))
+            for (kind_i, i), _, seconds in derivatives:
+                first.setdefault((kind_i, int(row[i])), []).append(next(values))
+                for (block, j), _ in seconds:
+                    key = (block, int(row[i]), int(row[j]))
+                    second.setdefault(key, []).append(next(values))
+    n = len(q)
+    columns = {kind: [sp.Add(*first.get((kind, a), ())) for a in range(n)] for kind in "qv"}
+    Lq, Lv = sp.Matrix(columns["q"]), sp.Matrix(columns["v"])
+    blocks = {}
+    for name in ("Lqq", "Lqv", "Lvv"):
+        entries = {}
+        for (block, a, b), terms in second.items():
+            if block == name:
+                total = sp.Add(*terms)
+                if total != 0:
+                    entries[(a, b)] = total
+        blocks[name] = _sparse(n, n, entries)
+    if rest != 0:
+        # terms of no indexed shape (none: every term of L has symbols, or is constant)
+        derive = _TermDerivatives()
+        Lq += _gradient(rest, q, derive)
+        Lv += _gradient(rest, v, derive)
+    return Lq, Lv, blocks["Lqq"], blocks["Lqv"], blocks["Lvv"]
+
+
+def _template_derivatives(group):
+    """Per coordinate or velocity argument ``i`` of a template: ``((kind, i), dT/dz_i,
+    [((block, j), d2T/dz_i dz_j), ...])``, the nonzero ones."""
+    z = group.arguments
+    active = [i for i, kind in enumerate(group.kinds) if kind in ("q", "v")]
+    blocks = {("q", "q"): "Lqq", ("q", "v"): "Lqv", ("v", "v"): "Lvv"}
+    out = []
+    for i in active:
+        d = sp.diff(group.template, z[i])
+        if d == 0:
+            continue
+        seconds = []
+        for j in active:
+            block = blocks.get((group.kinds[i], group.kinds[j]))
+            if block is not None:
+                dd = sp.diff(d, z[j])
+                if dd != 0:
+                    seconds.append(((block, j), dd))
+        out.append(((group.kinds[i], i), d, seconds))
+    return out
 
 
 def without_point_masses(pieces: PointwisePieces) -> PointwisePieces:
@@ -258,7 +333,7 @@ def without_point_masses(pieces: PointwisePieces) -> PointwisePieces:
             e = e.replace(sp.DiracDelta, lambda *args: sp.S.Zero)
             if e != 0:
                 entries[key] = e
-        return sp.ImmutableSparseMatrix(m.rows, m.cols, entries)
+        return _sparse(m.rows, m.cols, entries)
 
     return replace(
         pieces,
