@@ -27,7 +27,7 @@ import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 
-from ..model.terms import TermGroup
+from ..model.terms import TermGroup, derivative
 
 __all__ = ["ScatterGroup", "scatter_group"]
 
@@ -85,7 +85,7 @@ def _derivatives(group: TermGroup) -> list[tuple[str, int, int, sp.Expr]]:
     args = group.arguments
     active = [i for i, kind in enumerate(group.kinds) if kind in ("q", "v")]
     for i in active:
-        first = sp.diff(group.template, args[i])
+        first = derivative(group.template, args[i])
         if first == 0:
             continue
         out.append(("Lq" if group.kinds[i] == "q" else "Lv", i, -1, first))
@@ -93,7 +93,7 @@ def _derivatives(group: TermGroup) -> list[tuple[str, int, int, sp.Expr]]:
             block = _BLOCKS.get((group.kinds[i], group.kinds[j]))
             if block is None:
                 continue  # d/dv d/dq: L_qv holds it with the arguments swapped
-            second = _without_deltas(sp.diff(first, args[j]))
+            second = _without_deltas(derivative(first, args[j]))
             if second != 0:
                 out.append((block, i, j, second))
     return out
@@ -104,6 +104,7 @@ def scatter_group(
     name: str,
     n: int,
     position: dict[tuple[int, int], int] | None,
+    rename: dict[sp.Symbol, sp.Symbol] | None = None,
 ) -> ScatterGroup | None:
     """The :class:`ScatterGroup` of ``group``, or None if a slot is not stored.
 
@@ -119,9 +120,11 @@ def scatter_group(
         pattern; None for dense storage. A second derivative of the template
         outside the pattern (terms whose sum cancels) makes the group unfit
         (None): its terms then stay straight-line code.
+    rename : dict, optional
+        Further renaming of the template's other symbols (time).
     """
     loop_vars = [sp.Symbol(f"{name}_z{i}", real=True) for i in range(len(group.arguments))]
-    rename = dict(zip(group.arguments, loop_vars, strict=True))
+    rename = dict(rename or {}) | dict(zip(group.arguments, loop_vars, strict=True))
     table = group.table
     entries, columns = [], []
     for array, i, j, expr in _derivatives(group):

@@ -18,6 +18,8 @@ in the order of the sparsity pattern.
 
 from __future__ import annotations
 
+from functools import cache
+
 import numpy as np
 import sympy as sp
 
@@ -171,28 +173,41 @@ def _touched(
     return {array: np.unique(np.concatenate(cols)) for array, cols in out.items()}
 
 
+@cache
+def _group_code(group: ScatterGroup) -> tuple[list[str], list[str], str]:
+    """One group's loop body, shared by every point function: the temporaries of a joint
+    common-subexpression elimination of the template and all its derivatives, then
+    per derivative the expression it adds, and the template's value.
+
+    A point function that needs only some of the derivatives still computes
+    every temporary in the source; the compiler drops the unused ones.
+    """
+    printer = KernelPrinter(ordered=False)
+    exprs = [group.value] + [expr for _, expr in group.entries]
+    temporaries, reduced = sp.cse(exprs, symbols=sp.numbered_symbols(f"{group.name}_y"))
+    lines = []
+    for symbol, rhs in temporaries:
+        lines += _assignment(str(symbol), rhs, printer)
+    adds = [printer.doprint(expr) for expr in reduced[1:]]
+    return lines, adds, printer.doprint(reduced[0])
+
+
 def _scatter_loop(group: ScatterGroup, columns: list[int], value: bool) -> list[str]:
     r"""Source lines of one group's loop: read the arguments, add the derivatives.
 
     ``value``: add the template itself into ``_total`` (the Lagrangian) instead.
     """
-    printer = KernelPrinter(ordered=False)
-    exprs = [group.value] if value else [group.entries[e][1] for e in columns]
-    temporaries, reduced = sp.cse(
-        exprs, symbols=sp.numbered_symbols(f"{group.name}_y"), optimizations="basic"
-    )
+    temporaries, adds, total = _group_code(group)
     lines = [f"    for _k in range({group.count}):"]
     for i, (var, array) in enumerate(group.reads):
         lines.append(f"        {var} = {array}[{group.name}_args[_k, {i}]]")
-    body = []
-    for symbol, rhs in temporaries:
-        body += _assignment(str(symbol), rhs, printer)
+    body = list(temporaries)
     if value:
-        body += _assignment("_total", reduced[0], printer, accumulate=True)
+        body.append(f"    _total += {total}")
     else:
-        for e, expr in zip(columns, reduced, strict=True):
+        for e in columns:
             target = f"{group.entries[e][0]}[{group.name}_slots[_k, {e}]]"
-            body += _assignment(target, expr, printer, accumulate=True)
+            body.append(f"    {target} += {adds[e]}")
     return lines + ["    " + line for line in body]
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import sys
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import sympy as sp
@@ -265,8 +265,7 @@ def _scatter_groups(system: LagrangianSystem, rename: dict, position: dict | Non
         return None
     groups = []
     for k, group in enumerate(found):
-        group = replace(group, template=group.template.xreplace(rename))
-        scattered = scatter_group(group, f"_g{k}", system.n, position)
+        scattered = scatter_group(group, f"_g{k}", system.n, position, rename)
         if scattered is None:
             return None
         groups.append(scattered)

@@ -32,7 +32,13 @@ import sympy as sp
 # otherwise land on the first system a process builds
 import sympy.tensor.tensor  # noqa: E402, F401  isort: skip
 
-from .terms import repeated_terms, substitute  # noqa: E402
+from .terms import (  # noqa: E402
+    derivative,
+    distinct_nodes,
+    repeated_terms,
+    substitute,
+    symbols_of,
+)
 
 __all__ = [
     "ConstraintPieces",
@@ -298,14 +304,14 @@ def _template_derivatives(group):
     blocks = {("q", "q"): "Lqq", ("q", "v"): "Lqv", ("v", "v"): "Lvv"}
     out = []
     for i in active:
-        d = sp.diff(group.template, z[i])
+        d = derivative(group.template, z[i])
         if d == 0:
             continue
         seconds = []
         for j in active:
             block = blocks.get((group.kinds[i], group.kinds[j]))
             if block is not None:
-                dd = sp.diff(d, z[j])
+                dd = derivative(d, z[j])
                 if dd != 0:
                     seconds.append(((block, j), dd))
         out.append(((group.kinds[i], i), d, seconds))
@@ -326,7 +332,9 @@ def without_point_masses(pieces: PointwisePieces) -> PointwisePieces:
     """
 
     def drop(m: sp.MatrixBase | None) -> sp.MatrixBase | None:
-        if m is None or not any(e.has(sp.DiracDelta) for e in m.values()):
+        if m is None or not any(
+            isinstance(node, sp.DiracDelta) for node in distinct_nodes(m.values())
+        ):
             return m
         entries = {}
         for key, e in m.todok().items():
@@ -387,16 +395,14 @@ def analyse_structure(
     autonomous = t is None or t not in timed
     zero_fv = not forced or _is_zero_matrix(pieces.fv)
     zero_Lqv = _is_zero_matrix(pieces.Lqv)
-    lvv_symbols = set().union(*(e.free_symbols for e in pieces.Lvv.values()))
+    lvv_symbols = symbols_of(pieces.Lvv.values())
     quadratic_in_v = not (lvv_symbols & set(v))
     constant_mass = not (lvv_symbols & (qv | ({t} if t is not None else set())))
-    hess_symbols = set().union(
-        *(
-            e.free_symbols
-            for m in (pieces.Lqq, pieces.Lqv, pieces.Lvv, pieces.fq, pieces.fv)
-            if m is not None
-            for e in m.values()
-        )
+    hess_symbols = symbols_of(
+        e
+        for m in (pieces.Lqq, pieces.Lqv, pieces.Lvv, pieces.fq, pieces.fv)
+        if m is not None
+        for e in m.values()
     )
     quadratic = not (hess_symbols & (qv | ({t} if t is not None else set())))
     return Structure(

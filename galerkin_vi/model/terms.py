@@ -33,13 +33,23 @@ structural equality), so a spring written :math:`(x_j - x_i)` and one written
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 
-__all__ = ["KINDS", "TermGroup", "repeated_terms", "substitute"]
+__all__ = [
+    "KINDS",
+    "TermGroup",
+    "derivative",
+    "distinct_nodes",
+    "repeated_terms",
+    "substitute",
+    "symbols_of",
+]
 
 #: the kinds of a template's arguments, in the order they are numbered
 KINDS = ("q", "v", "prm")
@@ -107,6 +117,27 @@ def _shape(term: sp.Expr, index: dict[sp.Symbol, tuple[int, int]]):
     return template, kinds, tuple(i for (_, i), _ in found)
 
 
+def _distributed_terms(expr: sp.Expr, min_count: int) -> list[sp.Expr]:
+    r"""The terms of ``expr``, a common factor distributed over a long sum.
+
+    :math:`k (1 + \varepsilon\cos t) \sum_i (q_{i+1} - q_i)^2` is one term to
+    SymPy; written :math:`\sum_i k (1 + \varepsilon\cos t) (q_{i+1} - q_i)^2`
+    its terms repeat. A product with one sum of at least ``min_count`` terms
+    among its factors is distributed (recursively); other terms stay whole.
+    """
+    out = []
+    for term in sp.Add.make_args(expr):
+        if term.is_Mul:
+            sums = [f for f in term.args if f.is_Add and len(f.args) >= min_count]
+            if len(sums) == 1:
+                others = [f for f in term.args if f is not sums[0]]
+                distributed = sp.Add(*(sp.Mul(*others, a) for a in sums[0].args))
+                out += _distributed_terms(distributed, min_count)
+                continue
+        out.append(term)
+    return out
+
+
 def _placeholders(template: sp.Expr) -> set[sp.Symbol]:
     return {s for s in template.free_symbols if s.name.startswith("_gvi_z")}
 
@@ -148,7 +179,7 @@ def repeated_terms(
         index[t] = (-1, 0)
     buckets: dict[tuple, list] = {}
     rest: list[sp.Expr] = []
-    for term in sp.Add.make_args(L):
+    for term in _distributed_terms(L, min_count):
         shape = _shape(term, index)
         if shape is None or not shape[1]:
             rest.append(term)
@@ -203,3 +234,36 @@ def substitute(exprs: list[sp.Expr], mapping: dict[sp.Symbol, sp.Symbol]) -> lis
 
     with sp.evaluate(False):
         return [rebuilt(e) for e in exprs]
+
+
+def distinct_nodes(exprs: Iterable[sp.Basic]) -> Iterator[sp.Basic]:
+    """Every distinct subexpression of ``exprs``, once (pre-order, shared subtrees skipped).
+
+    The derivatives of a lattice repeat a spring's distance in every entry of
+    its rows: a walk that visits each distinct node once (SymPy caches their
+    hashes) costs a fraction of ``atoms``, ``has`` or ``free_symbols`` per
+    expression.
+    """
+    seen: set[sp.Basic] = set()
+    stack = list(exprs)
+    while stack:
+        node = stack.pop()
+        if node in seen:
+            continue
+        seen.add(node)
+        yield node
+        stack.extend(node.args)
+
+
+def symbols_of(exprs: Iterable[sp.Basic]) -> set[sp.Symbol]:
+    """The free symbols of ``exprs`` (of expressions without bound variables: no
+    integrals, sums or lambdas, which derivatives of a Lagrangian never hold)."""
+    return {node for node in distinct_nodes(exprs) if isinstance(node, sp.Symbol)}
+
+
+@lru_cache(maxsize=4096)
+def derivative(expr: sp.Expr, symbol: sp.Symbol) -> sp.Expr:
+    """``sp.diff(expr, symbol)``, remembered: the analysis of the model and the code
+    generation both differentiate each template (hundreds of milliseconds for a
+    spring's Hessian)."""
+    return sp.diff(expr, symbol)
