@@ -1,5 +1,9 @@
 """Build time of never-seen large systems: from ``LagrangianSystem(...)`` to the first step.
 
+Times are the child process's CPU time (``time.process_time``): on a
+machine shared with other jobs, wall time measures the load as much as the
+build (everything here runs in the one process, single-threaded).
+
 Each system is built in a fresh Python process with a fresh cache root
 (``GALERKIN_VI_CACHE_DIR``) whose ``loops/`` folder links to the warm loop
 cache of this machine (:func:`galerkin_vi.loops.loop_cache_dir`): the time
@@ -98,35 +102,35 @@ METHODS = {"gauss2": "gvi.Galerkin(2, gvi.gauss_legendre(2), nodes='equidistant'
 
 CHILD = """
 import time, json
-t0 = time.perf_counter()
+t0 = time.process_time()
 import numpy as np, sympy as sp
 import galerkin_vi as gvi
 from galerkin_vi.codegen import compiled
 stages = {"codegen": 0.0, "compile": 0.0}
 render = compiled.render_module
 def timed_render(*args, **kwargs):
-    s = time.perf_counter()
+    s = time.process_time()
     try:
         return render(*args, **kwargs)
     finally:
-        stages["codegen"] += time.perf_counter() - s
+        stages["codegen"] += time.process_time() - s
 compiled.render_module = timed_render
 addresses = compiled.PointFunctions.addresses
 def timed_addresses(self, names):
-    s = time.perf_counter()
+    s = time.process_time()
     try:
         return addresses(self, names)
     finally:
-        stages["compile"] += time.perf_counter() - s
+        stages["compile"] += time.process_time() - s
 compiled.PointFunctions.addresses = timed_addresses
 C = COEFFICIENT
 BUILD
-t1 = time.perf_counter()
+t1 = time.process_time()
 SYSTEM_BUILT
-t2 = time.perf_counter()
+t2 = time.process_time()
 integrator = gvi.Integrator(system, METHOD)
 traj = integrator.integrate(q0, v0=v0, h=0.01, n_steps=1)
-t3 = time.perf_counter()
+t3 = time.process_time()
 assert np.all(np.isfinite(traj.q[-1]))
 L = system.pieces.L
 print(json.dumps({
@@ -170,8 +174,10 @@ def run_one(kind: str, size: int, method: str, loops: Path) -> dict:
         env.pop("NUMBA_CACHE_DIR", None)
         coefficient = round(random.uniform(0.5, 1.5), 6)
         program = child_source(kind, size, method, coefficient)
+        # run outside the source tree: "python -c" puts the working directory first on
+        # sys.path, which would shadow PYTHONPATH (the tree under test)
         out = subprocess.run([sys.executable, "-c", program], env=env, capture_output=True,
-                             text=True)
+                             text=True, cwd=root)
         if out.returncode:
             raise RuntimeError(f"{kind} {size} {method} failed:\n{out.stderr[-3000:]}")
         return json.loads(out.stdout.strip().splitlines()[-1])

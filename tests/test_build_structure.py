@@ -222,7 +222,8 @@ def test_a_lattice_runs_through_the_run_options(small_lattice):
     full = integrator.integrate(q0, v0, h=0.05, n_steps=20)
     dense = integrator.integrate(q0, v0, h=0.05, t_span=(0.0, 1.0), t_eval=[0.25, 0.5],
                                  dense_output=True)  # fmt: skip
-    np.testing.assert_allclose(dense.q[-1], full.q[-1], rtol=0, atol=1e-13)
+    assert dense.t[-1] == pytest.approx(0.5)  # the rows at t_eval; t = 0.5 is step 10
+    np.testing.assert_allclose(dense.q[-1], full.q[10], rtol=0, atol=1e-12)
     event = gvi.Event(sp.Symbol("x0") - q0[0] - 1e-3, terminal=True)
     cut = integrator.integrate(q0, v0, h=0.05, t_span=(0.0, 1.0), events=[event])
     assert cut.t[-1] <= 1.0

@@ -190,10 +190,11 @@ def repeated_terms(
     # into one: their loop then evaluates what they share (the distance) once
     merged: dict[tuple, list[sp.Expr]] = {}
     for (template, kinds), members in buckets.items():
-        if len(members) < min_count:
+        arguments = tuple(sorted(_placeholders(template), key=lambda z: int(z.name[6:])))
+        # renaming may evaluate a symbol away (Piecewise((x, x > x)) is nan): no template
+        if len(members) < min_count or len(arguments) != len(kinds):
             rest.extend(term for term, _ in members)
             continue
-        arguments = tuple(sorted(_placeholders(template), key=lambda z: int(z.name[6:])))
         key = (kinds, arguments, tuple(indices for _, indices in members))
         merged.setdefault(key, []).append(template)
     groups = []
