@@ -228,8 +228,13 @@ def substitute(exprs: list[sp.Expr], mapping: dict[sp.Symbol, sp.Symbol]) -> lis
             memo[node] = node
             return node
         args = [rebuilt(arg) for arg in node.args]
-        same = all(a is b for a, b in zip(args, node.args, strict=True))
-        out = node if same else node.func(*args)
+        if all(a is b for a, b in zip(args, node.args, strict=True)):
+            out = node
+        elif isinstance(node, sp.core.operations.AssocOp):
+            # a sum or product: its arguments as they are (no flattening, no sorting)
+            out = node.func._from_args(args, node.is_commutative)
+        else:
+            out = node.func(*args)
         memo[node] = out
         return out
 
