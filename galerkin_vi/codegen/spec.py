@@ -18,6 +18,7 @@ import sys
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
 import sympy as sp
 
 from ..method.stage_form import has_stage_form
@@ -251,6 +252,15 @@ def _entry_count(pieces, has_lqv: bool, has_fv: bool) -> int:
     return sum(sum(1 for e in block.values() if e != 0) for block in blocks)
 
 
+def _consecutive(table) -> bool:
+    """Whether the instances, sorted, step every index by the same amount (a chain's springs):
+    the runs of :mod:`.repeats` then make loops of them without index tables, faster per
+    call (on a 100-mass chain, 3.9 against 4.7 us per Gauss(2) step)."""
+    rows = table[np.lexsort(table.T[::-1])]
+    steps = np.diff(rows, axis=0)
+    return len(rows) < 2 or bool(np.all(steps == steps[0]))
+
+
 def _scatter_groups(system: LagrangianSystem, rename: dict, position: dict | None):
     """The scatter loops of ``system``'s repeated terms and the pieces of the rest.
 
@@ -261,7 +271,7 @@ def _scatter_groups(system: LagrangianSystem, rename: dict, position: dict | Non
     found, remainder = repeated_terms(
         system.pieces.L, system.q, system.v, system.params, system.t, MIN_REPEATS
     )
-    if not found:
+    if not found or all(_consecutive(group.table) for group in found):
         return None
     groups = []
     for k, group in enumerate(found):
