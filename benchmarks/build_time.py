@@ -226,7 +226,7 @@ def plot(rows: list[dict], path: Path) -> None:
         sel = [r for r in rows if (r["kind"], r["method"]) == key]
         ax.loglog([r["n"] for r in sel], [r["total"] for r in sel], "o-", label=" ".join(key))
     ax.set_xlabel("coordinates")
-    ax.set_ylabel("LagrangianSystem(...) to first step [s]")
+    ax.set_ylabel("LagrangianSystem(...) to first step [CPU s]")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
