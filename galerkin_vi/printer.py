@@ -11,6 +11,8 @@ from __future__ import annotations
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
+from .model.terms import distinct_nodes
+
 __all__ = ["KernelPrinter", "unsupported_functions"]
 
 
@@ -75,7 +77,9 @@ def unsupported_functions(expr: sp.Basic) -> list[str]:
     printer cannot print."""
     printer = KernelPrinter()
     names = set()
-    for f in expr.atoms(sp.Function, *_UNEVALUATED):
+    kinds = (sp.Function, *_UNEVALUATED)
+    # each distinct subexpression once: a lattice's derivatives share most of theirs
+    for f in (node for node in distinct_nodes([expr]) if isinstance(node, kinds)):
         if isinstance(f, _UNEVALUATED):
             names.add(type(f).__name__)
             continue

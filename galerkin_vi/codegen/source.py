@@ -18,10 +18,14 @@ in the order of the sparsity pattern.
 
 from __future__ import annotations
 
+from functools import cache
+
+import numpy as np
 import sympy as sp
 
 from ..printer import KernelPrinter
 from .repeats import Run, find_runs
+from .scatter import ScatterGroup
 from .spec import KernelSpec
 
 __all__ = ["FUNCTIONS", "POINT_CHUNK", "render_module"]
@@ -48,12 +52,15 @@ LARGE = 120
 _SUM_CHUNK = 32
 
 
-def _assignment(target: str, expr: sp.Expr, printer: KernelPrinter) -> list[str]:
+def _assignment(
+    target: str, expr: sp.Expr, printer: KernelPrinter, accumulate: bool = False
+) -> list[str]:
     terms = sp.Add.make_args(expr)
+    op = "+=" if accumulate else "="
     if len(terms) <= _SUM_CHUNK:
-        return [f"    {target} = {printer.doprint(expr)}"]
+        return [f"    {target} {op} {printer.doprint(expr)}"]
     chunks = [sp.Add(*terms[k : k + _SUM_CHUNK]) for k in range(0, len(terms), _SUM_CHUNK)]
-    lines = [f"    {target} = {printer.doprint(chunks[0])}"]
+    lines = [f"    {target} {op} {printer.doprint(chunks[0])}"]
     lines += [f"    {target} += {printer.doprint(chunk)}" for chunk in chunks[1:]]
     return lines
 
@@ -83,7 +90,10 @@ def shared_quarter_roots(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[tupl
 
 
 def _function_body(
-    entries: list[tuple[str, sp.Expr]], returns: sp.Expr | None = None, large: bool = False
+    entries: list[tuple[str, sp.Expr]],
+    returns: sp.Expr | None = None,
+    large: bool = False,
+    accumulate: frozenset[str] = frozenset(),
 ) -> list[str]:
     # SymPy's "basic" CSE optimisations and sorted printing cost minutes on thousands
     # of entries (a chain of 1000 masses: 18 s against 1.2 s without); large systems
@@ -104,7 +114,7 @@ def _function_body(
     for sym, rhs in temporaries:
         lines += _assignment(str(sym), rhs, printer)
     for (slot, _), expr in zip(entries, reduced[: len(entries)], strict=True):
-        lines += _assignment(slot, expr, printer)
+        lines += _assignment(slot, expr, printer, accumulate=slot in accumulate)
     if returns is not None:
         lines += _assignment("_result", reduced[-1], printer)
         lines.append("    return _result")
@@ -127,24 +137,149 @@ def _loop_body(runs: list[Run]) -> list[str]:
     return lines
 
 
+#: the arrays each point function writes (scatter loops add only into these)
+WRITES = {
+    "point_gradient": ("Lq", "Lv"),
+    "point_hessian": ("Lq", "Lv", "Lqq", "Lqv", "Lvv"),
+    "point_mass": ("Lq", "Lv", "Lqv", "Lvv"),
+}
+
+
+def _table_literal(name: str, table: np.ndarray) -> str:
+    """One statement defining ``table`` (int64, 1-D or 2-D) as a module constant.
+
+    numba freezes a global array into the compiled code as constant data: the
+    loops read their indices without an argument, and the statement is one
+    line whatever the number of rows.
+    """
+    values = ",".join(map(str, table.ravel().tolist()))
+    shape = ", ".join(map(str, table.shape))
+    return f"{name} = np.array([{values}], dtype=np.int64).reshape({shape})"
+
+
+def _scattered_entries(group: ScatterGroup, arrays: tuple[str, ...]) -> list[int]:
+    """Indices of ``group``'s derivative entries that add into ``arrays``."""
+    return [e for e, (array, _) in enumerate(group.entries) if array in arrays]
+
+
+def _touched(
+    groups: tuple[ScatterGroup, ...], arrays: tuple[str, ...]
+) -> dict[str, np.ndarray]:
+    """Per array, the sorted slots some scatter loop adds into."""
+    out: dict[str, list[np.ndarray]] = {}
+    for group in groups:
+        for e in _scattered_entries(group, arrays):
+            out.setdefault(group.entries[e][0], []).append(group.slots[:, e])
+    return {array: np.unique(np.concatenate(cols)) for array, cols in out.items()}
+
+
+@cache
+def _group_code(group: ScatterGroup) -> tuple[list[str], list[str], str]:
+    """One group's loop body, shared by every point function: the temporaries of a joint
+    common-subexpression elimination of the template and all its derivatives, then
+    per derivative the expression it adds, and the template's value.
+
+    A point function that needs only some of the derivatives still computes
+    every temporary in the source; the compiler drops the unused ones.
+    """
+    printer = KernelPrinter(ordered=False)
+    exprs = [group.value] + [expr for _, expr in group.entries]
+    temporaries, reduced = sp.cse(exprs, symbols=sp.numbered_symbols(f"{group.name}_y"))
+    lines = []
+    for symbol, rhs in temporaries:
+        lines += _assignment(str(symbol), rhs, printer)
+    adds = [printer.doprint(expr) for expr in reduced[1:]]
+    return lines, adds, printer.doprint(reduced[0])
+
+
+def _scatter_loop(group: ScatterGroup, columns: list[int], value: bool) -> list[str]:
+    r"""Source lines of one group's loop: read the arguments, add the derivatives.
+
+    ``value``: add the template itself into ``_total`` (the Lagrangian) instead.
+    """
+    temporaries, adds, total = _group_code(group)
+    lines = [f"    for _k in range({group.count}):"]
+    for i, (var, array) in enumerate(group.reads):
+        lines.append(f"        {var} = {array}[{group.name}_args[_k, {i}]]")
+    body = list(temporaries)
+    if value:
+        body.append(f"    _total += {total}")
+    else:
+        for e in columns:
+            target = f"{group.entries[e][0]}[{group.name}_slots[_k, {e}]]"
+            body.append(f"    {target} += {adds[e]}")
+    return lines + ["    " + line for line in body]
+
+
+def _scatter_function(name: str, spec: KernelSpec, value: bool) -> tuple[list[str], list[str]]:
+    """The part of point function ``name`` that runs the scatter loops, and its tables.
+
+    It first zeroes every slot the loops add into (the caller zeroes the arrays
+    only once), then runs one loop per group. Returns ``(lines, tables)``.
+    """
+    params = FUNCTIONS[name]
+    lines = ["", "", "@part", f"def {name}_repeats({params}):"]
+    tables = []
+    if value:
+        lines.append("    _total = 0.0")
+        for group in spec.repeats:
+            lines += _scatter_loop(group, [], value=True)
+        return [*lines, "    return _total"], tables
+    arrays = tuple(a for a in WRITES[name] if a != "Lqv" or spec.has_Lqv or name == "point_mass")
+    for array, slots in _touched(spec.repeats, arrays).items():
+        table = f"_zero_{name}_{array}"
+        tables.append(_table_literal(table, slots))
+        lines += [f"    for _k in range({slots.size}):", f"        {array}[{table}[_k]] = 0.0"]
+    for group in spec.repeats:
+        columns = _scattered_entries(group, arrays)
+        if columns:
+            lines += _scatter_loop(group, columns, value=False)
+    return lines, tables
+
+
+def _accumulated(name: str, spec: KernelSpec) -> frozenset[str]:
+    """The slots of point function ``name`` that its scatter loops add into."""
+    if not spec.repeats or name not in WRITES:
+        return frozenset()
+    arrays = tuple(a for a in WRITES[name] if a != "Lqv" or spec.has_Lqv or name == "point_mass")
+    return frozenset(
+        f"{array}[{slot}]"
+        for array, slots in _touched(spec.repeats, arrays).items()
+        for slot in slots.tolist()
+    )
+
+
 def _point_function(
     name: str,
     entries: list[tuple[str, sp.Expr]],
     large: bool,
     returns: sp.Expr | None = None,
     spec: KernelSpec | None = None,
-) -> list[str]:
-    """Source lines of one point function, split into parts when ``large``.
+) -> tuple[list[str], list[str]]:
+    """Source lines of one point function, split into parts when ``large``, and its tables.
 
     In a large function, runs of entries that repeat one expression along the
-    coordinates become loops (:mod:`.repeats`), in a part of their own.
+    coordinates become loops (:mod:`.repeats`), in a part of their own; the
+    repeated terms of the spec (:mod:`.scatter`) become scatter loops, in a
+    part that runs first, and the entries they share slots with add to them.
     """
     params = FUNCTIONS[name]
     if not large:
-        return ["", "", f"def {name}({params}):", *_function_body(entries, returns=returns)]
+        return ["", "", f"def {name}({params}):", *_function_body(entries, returns=returns)], []
+    lines: list[str] = []
+    tables: list[str] = []
+    calls = []
+    accumulate = frozenset()
+    if spec is not None and spec.repeats and (returns is not None or name in WRITES):
+        lines, tables = _scatter_function(name, spec, value=returns is not None)
+        calls.append(f"{name}_repeats({params})")
+        accumulate = _accumulated(name, spec)
     runs: list[Run] = []
     if returns is None and spec is not None:
-        runs, entries = find_runs(entries, spec.n, spec.pattern if spec.banded else ())
+        # a slot a scatter loop adds into is not a run's: runs assign
+        free = [entry for entry in entries if entry[0] not in accumulate]
+        runs, rest = find_runs(free, spec.n, spec.pattern if spec.banded else ())
+        entries = rest + [entry for entry in entries if entry[0] in accumulate]
     if returns is not None:
         terms = sp.Add.make_args(returns)
         pieces = [
@@ -152,8 +287,6 @@ def _point_function(
         ]
     else:
         pieces = [(entries[k : k + POINT_CHUNK], None) for k in range(0, len(entries), POINT_CHUNK)]
-    lines: list[str] = []
-    calls = []
     if runs:
         part = f"{name}_loops"
         lines += ["", "", "@part", f"def {part}({params}):", *_loop_body(runs)]
@@ -161,7 +294,7 @@ def _point_function(
     for k, (chunk, partial) in enumerate(pieces):
         part = f"{name}_part{k}"
         lines += ["", "", "@part", f"def {part}({params}):"]
-        lines += _function_body(chunk, returns=partial, large=True)
+        lines += _function_body(chunk, returns=partial, large=True, accumulate=accumulate)
         calls.append(f"{part}({params})")
     lines += ["", "", f"def {name}({params}):"]
     if returns is not None:
@@ -170,7 +303,7 @@ def _point_function(
         lines.append("    return total")
     else:
         lines += [f"    {call}" for call in calls] or ["    pass"]
-    return lines
+    return lines, tables
 
 
 def _constraint_functions(spec: KernelSpec) -> list[str]:
@@ -183,7 +316,11 @@ def _constraint_functions(spec: KernelSpec) -> list[str]:
         ("point_constraint_rate", spec.constraint_rate_entries),
         ("point_constraint_hessian", spec.constraint_hessian_entries),
     )
-    return [line for name, entries in parts for line in _point_function(name, list(entries), False)]
+    return [
+        line
+        for name, entries in parts
+        for line in _point_function(name, list(entries), False)[0]
+    ]
 
 
 def render_module(spec: KernelSpec, key: str) -> str:
@@ -196,7 +333,7 @@ def render_module(spec: KernelSpec, key: str) -> str:
         The cache key; written on the first and last line so that a truncated
         or foreign file is recognised.
     """
-    large = len(spec.hessian_entries) > LARGE
+    large = len(spec.hessian_entries) > LARGE or bool(spec.repeats)
     head = [
         f"# galerkin_vi point functions {key}",
         "# Generated from a SymPy Lagrangian; do not edit (rebuilt when stale).",
@@ -206,17 +343,26 @@ def render_module(spec: KernelSpec, key: str) -> str:
     if large:
         head += [
             "",
+            "import numpy as np",
             "from numba import njit",
             "",
             "# the parts of a large point function: compiled once each, and called",
             'part = njit(cache=True, error_model="numpy")',
         ]
-    body = [
-        *_point_function("point_gradient", list(spec.gradient_entries), large, spec=spec),
-        *_point_function("point_hessian", list(spec.hessian_entries), large, spec=spec),
-        *_point_function("lagrangian", [], large, returns=spec.lagrangian),
-        *_point_function("point_mass", list(spec.mass_entries), large, spec=spec),
-        *_constraint_functions(spec),
+    functions = [
+        _point_function("point_gradient", list(spec.gradient_entries), large, spec=spec),
+        _point_function("point_hessian", list(spec.hessian_entries), large, spec=spec),
+        _point_function("lagrangian", [], large, returns=spec.lagrangian, spec=spec),
+        _point_function("point_mass", list(spec.mass_entries), large, spec=spec),
     ]
+    tables = [
+        _table_literal(f"{group.name}_{what}", array)
+        for group in spec.repeats
+        for what, array in (("args", group.table), ("slots", group.slots))
+    ]
+    tables += [table for _, function_tables in functions for table in function_tables]
+    body = [line for lines, _ in functions for line in lines] + _constraint_functions(spec)
+    if tables:
+        head += ["", "# index tables of the repeated terms' scatter loops", *tables]
     tail = ["", "", f"# end of galerkin_vi point functions {key}", ""]
     return "\n".join(head + body + tail)

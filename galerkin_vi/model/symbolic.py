@@ -32,6 +32,14 @@ import sympy as sp
 # otherwise land on the first system a process builds
 import sympy.tensor.tensor  # noqa: E402, F401  isort: skip
 
+from .terms import (  # noqa: E402
+    derivative,
+    distinct_nodes,
+    repeated_terms,
+    substitute,
+    symbols_of,
+)
+
 __all__ = [
     "ConstraintPieces",
     "constraint_pieces",
@@ -52,12 +60,12 @@ class PointwisePieces:
     ----------
     L : sympy.Expr
     Lq, Lv : sympy.Matrix, shape (n, 1)
-    Lqq, Lqv, Lvv : sympy.ImmutableSparseMatrix, shape (n, n)
+    Lqq, Lqv, Lvv : sympy.SparseMatrix, shape (n, n)
         ``Lqv[a, b]`` is :math:`\\partial^2 L / \\partial q_a \\partial v_b`; entries
         that are identically zero are not stored.
     f : sympy.Matrix, shape (n, 1), or None
         External generalised forces :math:`f(t, q, v)`; ``None`` without forces.
-    fq, fv : sympy.ImmutableSparseMatrix, shape (n, n), or None
+    fq, fv : sympy.SparseMatrix, shape (n, n), or None
         :math:`\\partial f_a/\\partial q_b` and :math:`\\partial f_a/\\partial v_b`.
     """
 
@@ -177,7 +185,7 @@ def _gradient(expr: sp.Expr, symbols: list[sp.Symbol], derive: _TermDerivatives)
 
 def _jacobian(
     column: sp.Matrix, symbols: list[sp.Symbol], derive: _TermDerivatives
-) -> sp.ImmutableSparseMatrix:
+) -> sp.SparseMatrix:
     """Sparse Jacobian of ``column`` by ``symbols``: only structural nonzeros are stored."""
     index = {s: i for i, s in enumerate(symbols)}
     entries = {}
@@ -190,10 +198,20 @@ def _jacobian(
             d = sp.Add(*terms)
             if d != 0:
                 entries[(a, b)] = d
-    return sp.ImmutableSparseMatrix(len(column), len(symbols), entries)
+    return _sparse(len(column), len(symbols), entries)
 
 
-def _sparse_sum(a: sp.MatrixBase, b: sp.MatrixBase) -> sp.ImmutableSparseMatrix:
+def _sparse(rows: int, cols: int, entries: dict) -> sp.SparseMatrix:
+    """A sparse matrix of ``entries``, read-only by convention.
+
+    SymPy's immutable sparse matrix sorts its entries by their expressions'
+    sort keys when built (0.5 ms an entry of a spring's second derivative:
+    seconds for a lattice of hundreds of masses); the mutable one does not.
+    """
+    return sp.SparseMatrix(rows, cols, entries)
+
+
+def _sparse_sum(a: sp.MatrixBase, b: sp.MatrixBase) -> sp.SparseMatrix:
     """Sum of two sparse matrices, storing only entries that do not cancel."""
     entries = dict(a.todok())
     for key, e in b.todok().items():
@@ -202,7 +220,7 @@ def _sparse_sum(a: sp.MatrixBase, b: sp.MatrixBase) -> sp.ImmutableSparseMatrix:
             entries.pop(key, None)
         else:
             entries[key] = total
-    return sp.ImmutableSparseMatrix(a.rows, a.cols, entries)
+    return _sparse(a.rows, a.cols, entries)
 
 
 def pointwise_pieces(
@@ -217,24 +235,87 @@ def pointwise_pieces(
     are not identically zero (a chain of N masses has O(N) of them).
     """
     derive = _TermDerivatives()
-    Lq = _gradient(L, q, derive)
-    Lv = _gradient(L, v, derive)
+    Lq, Lv, Lqq, Lqv, Lvv = _lagrangian_derivatives(L, q, v)
     f = fq = fv = None
     if forces is not None:
         f = sp.Matrix(forces)
         fq = _jacobian(f, q, derive)
         fv = _jacobian(f, v, derive)
-    return PointwisePieces(
-        L=L,
-        Lq=Lq,
-        Lv=Lv,
-        Lqq=_jacobian(Lq, q, derive),
-        Lqv=_jacobian(Lq, v, derive),
-        Lvv=_jacobian(Lv, v, derive),
-        f=f,
-        fq=fq,
-        fv=fv,
-    )
+    return PointwisePieces(L=L, Lq=Lq, Lv=Lv, Lqq=Lqq, Lqv=Lqv, Lvv=Lvv, f=f, fq=fq, fv=fv)
+
+
+def _lagrangian_derivatives(L: sp.Expr, q: list[sp.Symbol], v: list[sp.Symbol]) -> tuple:
+    r""":math:`L_q, L_v` (columns) and :math:`L_{qq}, L_{qv}, L_{vv}` (sparse) of ``L``.
+
+    The terms of ``L`` are grouped by shape (:func:`~.terms.repeated_terms`:
+    one template on the index tuples of its instances, the two powers of one
+    spring summed into one template); each template's gradient and Hessian
+    are taken once, over placeholders, and instantiated per term by
+    substitution. Taking the second derivatives from the template, not from
+    the instantiated first derivatives, halves the substitutions, which are
+    what a lattice's analysis costs (each rebuilt power of a sum queries
+    SymPy's assumptions).
+    """
+    index = {s: a for a, s in enumerate(q)} | {s: a for a, s in enumerate(v)}
+    others = tuple(sorted(L.free_symbols - set(index), key=sp.default_sort_key))
+    groups, rest = repeated_terms(L, tuple(q), tuple(v), others, None, min_count=1)
+    first: dict[tuple[str, int], list[sp.Expr]] = {}
+    second: dict[tuple[str, int, int], list[sp.Expr]] = {}
+    symbols = {"q": tuple(q), "v": tuple(v), "prm": others}
+    for group in groups:
+        derivatives = _template_derivatives(group)
+        flat = [e for _, d, seconds in derivatives for e in (d, *(dd for _, dd in seconds))]
+        for row in group.table:
+            mapping = {
+                z: symbols[kind][int(j)]
+                for z, kind, j in zip(group.arguments, group.kinds, row, strict=True)
+            }
+            values = iter(substitute(flat, mapping))
+            for (kind_i, i), _, seconds in derivatives:
+                first.setdefault((kind_i, int(row[i])), []).append(next(values))
+                for (block, j), _ in seconds:
+                    key = (block, int(row[i]), int(row[j]))
+                    second.setdefault(key, []).append(next(values))
+    n = len(q)
+    columns = {kind: [sp.Add(*first.get((kind, a), ())) for a in range(n)] for kind in "qv"}
+    Lq, Lv = sp.Matrix(columns["q"]), sp.Matrix(columns["v"])
+    blocks = {}
+    for name in ("Lqq", "Lqv", "Lvv"):
+        entries = {}
+        for (block, a, b), terms in second.items():
+            if block == name:
+                total = sp.Add(*terms)
+                if total != 0:
+                    entries[(a, b)] = total
+        blocks[name] = _sparse(n, n, entries)
+    if rest != 0:
+        # terms of no indexed shape (none: every term of L has symbols, or is constant)
+        derive = _TermDerivatives()
+        Lq += _gradient(rest, q, derive)
+        Lv += _gradient(rest, v, derive)
+    return Lq, Lv, blocks["Lqq"], blocks["Lqv"], blocks["Lvv"]
+
+
+def _template_derivatives(group):
+    """Per coordinate or velocity argument ``i`` of a template: ``((kind, i), dT/dz_i,
+    [((block, j), d2T/dz_i dz_j), ...])``, the nonzero ones."""
+    z = group.arguments
+    active = [i for i, kind in enumerate(group.kinds) if kind in ("q", "v")]
+    blocks = {("q", "q"): "Lqq", ("q", "v"): "Lqv", ("v", "v"): "Lvv"}
+    out = []
+    for i in active:
+        d = derivative(group.template, z[i])
+        if d == 0:
+            continue
+        seconds = []
+        for j in active:
+            block = blocks.get((group.kinds[i], group.kinds[j]))
+            if block is not None:
+                dd = derivative(d, z[j])
+                if dd != 0:
+                    seconds.append(((block, j), dd))
+        out.append(((group.kinds[i], i), d, seconds))
+    return out
 
 
 def without_point_masses(pieces: PointwisePieces) -> PointwisePieces:
@@ -251,14 +332,16 @@ def without_point_masses(pieces: PointwisePieces) -> PointwisePieces:
     """
 
     def drop(m: sp.MatrixBase | None) -> sp.MatrixBase | None:
-        if m is None or not any(e.has(sp.DiracDelta) for e in m.values()):
+        if m is None or not any(
+            isinstance(node, sp.DiracDelta) for node in distinct_nodes(m.values())
+        ):
             return m
         entries = {}
         for key, e in m.todok().items():
             e = e.replace(sp.DiracDelta, lambda *args: sp.S.Zero)
             if e != 0:
                 entries[key] = e
-        return sp.ImmutableSparseMatrix(m.rows, m.cols, entries)
+        return _sparse(m.rows, m.cols, entries)
 
     return replace(
         pieces,
@@ -312,16 +395,14 @@ def analyse_structure(
     autonomous = t is None or t not in timed
     zero_fv = not forced or _is_zero_matrix(pieces.fv)
     zero_Lqv = _is_zero_matrix(pieces.Lqv)
-    lvv_symbols = set().union(*(e.free_symbols for e in pieces.Lvv.values()))
+    lvv_symbols = symbols_of(pieces.Lvv.values())
     quadratic_in_v = not (lvv_symbols & set(v))
     constant_mass = not (lvv_symbols & (qv | ({t} if t is not None else set())))
-    hess_symbols = set().union(
-        *(
-            e.free_symbols
-            for m in (pieces.Lqq, pieces.Lqv, pieces.Lvv, pieces.fq, pieces.fv)
-            if m is not None
-            for e in m.values()
-        )
+    hess_symbols = symbols_of(
+        e
+        for m in (pieces.Lqq, pieces.Lqv, pieces.Lvv, pieces.fq, pieces.fv)
+        if m is not None
+        for e in m.values()
     )
     quadratic = not (hess_symbols & (qv | ({t} if t is not None else set())))
     return Structure(
