@@ -11,7 +11,7 @@ from __future__ import annotations
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
-from .model.terms import distinct_nodes
+from .expression_walk import distinct_nodes
 
 __all__ = ["KernelPrinter", "unsupported_functions"]
 

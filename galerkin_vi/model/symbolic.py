@@ -32,13 +32,8 @@ import sympy as sp
 # otherwise land on the first system a process builds
 import sympy.tensor.tensor  # noqa: E402, F401  isort: skip
 
-from .terms import (  # noqa: E402
-    derivative,
-    distinct_nodes,
-    repeated_terms,
-    substitute,
-    symbols_of,
-)
+from ..expression_walk import distinct_nodes, symbols_of  # noqa: E402
+from .terms import derivative, repeated_terms, substitute  # noqa: E402
 
 __all__ = [
     "ConstraintPieces",

@@ -33,7 +33,6 @@ structural equality), so a spring written :math:`(x_j - x_i)` and one written
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -45,10 +44,8 @@ __all__ = [
     "KINDS",
     "TermGroup",
     "derivative",
-    "distinct_nodes",
     "repeated_terms",
     "substitute",
-    "symbols_of",
 ]
 
 #: the kinds of a template's arguments, in the order they are numbered
@@ -240,31 +237,6 @@ def substitute(exprs: list[sp.Expr], mapping: dict[sp.Symbol, sp.Symbol]) -> lis
 
     with sp.evaluate(False):
         return [rebuilt(e) for e in exprs]
-
-
-def distinct_nodes(exprs: Iterable[sp.Basic]) -> Iterator[sp.Basic]:
-    """Every distinct subexpression of ``exprs``, once (pre-order, shared subtrees skipped).
-
-    The derivatives of a lattice repeat a spring's distance in every entry of
-    its rows: a walk that visits each distinct node once (SymPy caches their
-    hashes) costs a fraction of ``atoms``, ``has`` or ``free_symbols`` per
-    expression.
-    """
-    seen: set[sp.Basic] = set()
-    stack = list(exprs)
-    while stack:
-        node = stack.pop()
-        if node in seen:
-            continue
-        seen.add(node)
-        yield node
-        stack.extend(node.args)
-
-
-def symbols_of(exprs: Iterable[sp.Basic]) -> set[sp.Symbol]:
-    """The free symbols of ``exprs`` (of expressions without bound variables: no
-    integrals, sums or lambdas, which derivatives of a Lagrangian never hold)."""
-    return {node for node in distinct_nodes(exprs) if isinstance(node, sp.Symbol)}
 
 
 @lru_cache(maxsize=4096)
