@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import DegenerateLagrangianError
 from ..loops.abi import LoopResult
+from ..method.composition import Composition
 from ..model.system import is_regular
 from ..reference import numpy as numpy_backend
 from ..reference import numpy_constrained
@@ -20,7 +21,11 @@ from .outputs import RunOutputs
 from .spec import RunSpec, Segment
 from .trajectory import Trajectory
 
-__all__ = ["LoopResult", "run_once", "run_segment"]
+__all__ = ["LoopResult", "run_once", "run_segment", "substeps"]
+
+#: Störmer–Verlet as the one-stage composition (gamma, nodes); writable, as numba types
+#: a read-only array as another compiled variant
+_VERLET = (np.ones(1), np.ones(1))
 
 
 def run_once(spec: RunSpec, segment: Segment) -> tuple[Trajectory, LoopResult]:
@@ -58,8 +63,17 @@ def run_segment(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     return result
 
 
+def substeps(method) -> tuple[np.ndarray, np.ndarray]:
+    r"""The explicit loop's sub-steps of ``method``: :math:`(\gamma_i)` and their ends
+    :math:`(c_i)`; Störmer–Verlet (``Galerkin(1)``) is ``([1.0], [1.0])``."""
+    if isinstance(method, Composition):
+        return method.coefficients, method.nodes
+    return _VERLET
+
+
 def _explicit(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
-    """Störmer–Verlet with :math:`M^{-1}` formed once (a diagonal M as its diagonal only)."""
+    """A composition of Störmer–Verlet (one stage: itself) with :math:`M^{-1}` formed once
+    (a diagonal M as its diagonal only)."""
     from ..loops import explicit_loop
 
     system, n = spec.system, spec.system.n
@@ -77,7 +91,7 @@ def _explicit(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     return LoopResult(
         *explicit_loop(
             fn, periodic, time_dependent, s.q0, s.p0, s.t0, s.h, s.n_steps, s.save_every, s.prm,
-            inverse, diagonal, *out.arrays,
+            inverse, diagonal, *substeps(spec.method), *out.arrays,
         )
     )  # fmt: skip
 
