@@ -156,7 +156,13 @@ SCHEMES: dict[tuple[int, str], CompositionScheme] = {
 
 #: the scheme ``Composition(order)`` takes: the fewest force evaluations for a given
 #: error among the tabulated ones ([HLW06] Fig. V.3.4)
-DEFAULT_SCHEMES = {2: "verlet", 4: "yoshida", 6: "kahan_li", 8: "kahan_li", 10: "sofroniou_spaletta"}
+DEFAULT_SCHEMES = {
+    2: "verlet",
+    4: "yoshida",
+    6: "kahan_li",
+    8: "kahan_li",
+    10: "sofroniou_spaletta",
+}
 
 
 def _triple_jump(order: int) -> list:
@@ -172,7 +178,8 @@ def _triple_jump(order: int) -> list:
 
 
 def _suzuki() -> list:
-    r"""Suzuki's fractal: :math:`\gamma_{1,2,4,5} = 1/(4 - 4^{1/3})`, :math:`\gamma_3 = 1 - 4\gamma_1`."""
+    r"""Suzuki's fractal: :math:`\gamma_{1,2,4,5} = 1/(4 - 4^{1/3})`,
+    :math:`\gamma_3 = 1 - 4\gamma_1`."""
     g = 1 / (4 - mpmath.cbrt(4))
     return [g, g, 1 - 4 * g, g, g]
 
@@ -184,10 +191,11 @@ def _closed_form(order: int, name: str) -> list:
 
 
 @lru_cache(maxsize=32)
-def exact_coefficients(order: int, name: str) -> tuple:
-    """The scheme's :math:`\\gamma_i` as mpmath numbers at 40 digits."""
+def exact_coefficients(order: int, name: str, digits: int = _DIGITS) -> tuple:
+    """The scheme's :math:`\\gamma_i` as mpmath numbers at ``digits`` digits (a tabulated
+    scheme is exact to its 26 published digits only)."""
     scheme = SCHEMES[(order, name)]
-    with mpmath.workdps(_DIGITS):
+    with mpmath.workdps(digits):
         if scheme.half is None:
             return tuple(_closed_form(order, name))
         half = [mpmath.mpf(x) for x in scheme.half]
