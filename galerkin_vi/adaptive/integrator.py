@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConvergenceError, RunFailureWarning
 from ..integrator import Integrator
+from ..method.composition import Composition
 from ..method.galerkin import Galerkin
 from ..model.system import LagrangianSystem
 from ..run.chunks import ProgressBar
@@ -94,6 +95,12 @@ class AdaptiveIntegrator:
         g: sp.Expr,
         **options,
     ) -> None:
+        if isinstance(method, Composition):
+            raise ValueError(
+                f"AdaptiveIntegrator: {method!r} needs a separable Lagrangian with constant "
+                "mass, and the Poincare-transformed Lagrangian g(q) (L + H0) is not one "
+                "(its mass matrix is g(q) M); use a Galerkin method"
+            )
         self.transform = PoincareTransform(system, g)
         self.system = system
         # the long fictitious steps are near the fixed point's limit, where it hands
