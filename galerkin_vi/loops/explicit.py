@@ -122,7 +122,10 @@ def explicit_loop(
                     total = qk[a] + y
                     q_lost[a] = (total - qk[a]) - y
                     qk[a] = total
-            if periodic is not None:
+            if periodic is not None and i == m - 1:
+                # once per step, before the last force: the inner sub-steps' angles stay
+                # within a step's travel of [-pi, pi) (accurate forces still), and a wrap
+                # at every sub-step doubles the cost of a one-stage step
                 wrap_angles(qk, q_lost, turns, periodic)
             point_gradient(fn, tau, qk, zero, prm, lq_next, a1)
             for a in range(n):
