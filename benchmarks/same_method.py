@@ -8,8 +8,12 @@ double pendulum, all started from extrapolated stage forces), the ratio, and the
 largest difference of the final states (both runs take the same steps: a large
 difference would mean the two do not compute the same method).
 
-Both sides run in this process, interleaved, best of ``--repeats``: only the
-ratios compare across machines.
+The hand-written side is the faster of the fixed-point kernel of
+``peers/strong.py`` (any problem and table) and, where one exists, the scalar
+kernel of ``peers/scalar.py`` written for that one method and problem (Gauss(2)
+on the pendulum and Kepler: no arrays, no loops over stages or coordinates);
+the column ``hw kernel`` says which. Both sides run in this process,
+interleaved, best of ``--repeats``: only the ratios compare across machines.
 
 Usage::
 
@@ -33,7 +37,7 @@ _HERE = str(Path(__file__).resolve().parent)
 if _HERE not in sys.path:
     sys.path.insert(0, _HERE)
 
-from peers import cases, strong  # noqa: E402
+from peers import cases, scalar, strong  # noqa: E402
 
 import galerkin_vi as gvi  # noqa: E402
 
@@ -56,11 +60,20 @@ def _clock(fn) -> float:
     return time.process_time() - start
 
 
-def row(case: cases.Case, label: str, s: int, family: str, seconds: float, repeats: int) -> dict:
-    """One problem and method: times, iterations, final-state difference."""
+def row(
+    case: cases.Case,
+    label: str,
+    s: int,
+    family: str,
+    seconds: float,
+    repeats: int,
+    h_scale: float = 1.0,
+) -> dict:
+    """One problem and method at ``h_scale`` times the problem's per-step h: times,
+    iterations, final-state difference."""
     quad = gvi.gauss_legendre(s) if family == "gauss" else gvi.gauss_lobatto(s + 1)
     integ = gvi.Integrator(case.problem.system, gvi.Galerkin(s, quad))
-    h, prm = case.per_step_h, case.problem.params
+    h, prm = h_scale * case.per_step_h, case.problem.params
 
     def gvi_run(n):
         return integ.integrate(case.q0, case.v0, h=h, n_steps=n, save_every=n, params=prm)
@@ -83,15 +96,27 @@ def row(case: cases.Case, label: str, s: int, family: str, seconds: float, repea
         def hw_run(n):
             return strong.run_nystrom(case.problem_id, tables, case.q0, p0, h, n, n, case.hw_params)
 
+    kernels = {"fixed-point": hw_run}
+    if (case.name, label) in scalar.SCALAR_KERNELS:
+
+        def scalar_run(n):
+            return scalar.run_scalar(case.name, label, case.q0, p0, h, n, n)
+
+        kernels["scalar"] = scalar_run
     gvi_run(10)
-    hw_run(10)
+    for run in kernels.values():
+        run(10)
     probe = 500
     n = int(min(1_000_000, max(500, probe * seconds / max(_clock(lambda: gvi_run(probe)), 1e-9))))
-    t_gvi = t_hw = math.inf
+    t_gvi = math.inf
+    t_kernels = dict.fromkeys(kernels, math.inf)
     for _ in range(repeats):
         t_gvi = min(t_gvi, _clock(lambda: gvi_run(n)))
-        t_hw = min(t_hw, _clock(lambda: hw_run(n)))
-    a, b = gvi_run(n), hw_run(n)
+        for name, run in kernels.items():
+            t_kernels[name] = min(t_kernels[name], _clock(lambda run=run: run(n)))
+    strongest = min(t_kernels, key=t_kernels.get)
+    t_hw = t_kernels[strongest]
+    a, b = gvi_run(n), kernels[strongest](n)
     scale = 1.0 + float(np.max(np.abs(b.q[-1])))
     return {
         "problem": case.name,
@@ -105,6 +130,8 @@ def row(case: cases.Case, label: str, s: int, family: str, seconds: float, repea
         "hw_sweeps": b.mean_sweeps,
         "final_q_difference": float(np.max(np.abs(a.q[-1] - b.q[-1]))) / scale,
         "loop": integ.kernel_path,
+        "kernel": strongest,
+        "kernel_ns": {name: 1e9 * t / n for name, t in t_kernels.items()},
     }
 
 
@@ -115,10 +142,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=0.05, help="length of one timed run")
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument(
+        "--h-scale",
+        type=float,
+        default=1.0,
+        help="step size as a multiple of the problem's per-step h (0.01: the regime where "
+        "the extrapolated start is nearly exact and one or two sweeps converge)",
+    )
     args = parser.parse_args(argv)
     header = (
         f"{'problem':20s} {'method':11s} {'loop':10s} {'gvi ns':>9s} {'hw ns':>9s} {'ratio':>6s}"
-        f" {'gvi its':>8s} {'hw sweeps':>9s} {'final dq':>9s}"
+        f" {'gvi its':>8s} {'hw sweeps':>9s} {'final dq':>9s} {'hw kernel':>11s}"
     )
     print(header)
     print("-" * len(header))
@@ -128,14 +162,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         for label, s, family in METHODS:
             if label not in args.methods:
                 continue
-            r = row(case, label, s, family, args.seconds, args.repeats)
+            r = row(case, label, s, family, args.seconds, args.repeats, args.h_scale)
             if not r:
                 continue
             rows.append(r)
             print(
                 f"{name:20s} {label:11s} {r['loop']:10s} {r['gvi_ns']:9.1f} {r['hw_ns']:9.1f}"
                 f" {r['ratio']:6.2f} {r['gvi_iterations']:8.2f} {r['hw_sweeps']:9.2f}"
-                f" {r['final_q_difference']:9.1e}",
+                f" {r['final_q_difference']:9.1e} {r['kernel']:>11s}",
                 flush=True,
             )
     if args.json:

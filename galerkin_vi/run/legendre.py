@@ -25,10 +25,14 @@ from numpy.typing import NDArray
 
 from ..model.system import are_regular, is_regular
 
-__all__ = ["PointLegendre"]
+__all__ = ["ConstantMassLegendre", "PointLegendre"]
 
 #: the Hessian point function's C signature: void(t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
 _HESSIAN = ctypes.CFUNCTYPE(None, ctypes.c_double, *([ctypes.c_void_p] * 9))
+#: the gradient point function's C signature: void(t, q, v, prm, Lq, Lv)
+_GRADIENT = ctypes.CFUNCTYPE(None, ctypes.c_double, *([ctypes.c_void_p] * 5))
+#: mass matrices kept per system (one per parameter vector in use)
+_MASSES_KEPT = 16
 
 
 def _vector(x) -> NDArray[np.float64]:
@@ -138,3 +142,104 @@ class PointLegendre:
             if not self._regular(m):
                 return None
         return np.linalg.solve(m, _vector(p) - base)
+
+
+class ConstantMassLegendre:
+    r"""The Legendre transform of a separable L with constant mass, from its gradient alone.
+
+    For :math:`L = \tfrac12 v^T M v + a(t, q)\cdot v - V(t, q)` with :math:`M`
+    constant in :math:`(t, q, v)` (it may depend on the parameters),
+
+    .. math::
+
+        p = L_v(t, q, v), \qquad v = M^{-1}\big(p - L_v(t, q, 0)\big),
+
+    so one call of the compiled gradient point function gives either
+    direction, and :math:`M`, its regularity test and :math:`M^{-1}` are
+    computed once per parameter vector (the explicit loop's systems compile
+    no Hessian point function).
+
+    Parameters
+    ----------
+    address : int
+        Address of the C wrapper of the system's ``point_gradient`` ``cfunc``.
+    n : int
+        Number of coordinates.
+    mass : callable
+        ``mass(prm)``: the dense :math:`M` (n, n) at parameter vector ``prm``.
+    """
+
+    def __init__(self, address: int, n: int, mass) -> None:
+        self._call = _GRADIENT(address)
+        self.n = n
+        self._mass = mass
+        # inputs and outputs in one buffer, their addresses taken once: q, v, Lq, Lv
+        self._work = np.zeros(4 * n)
+        base, itemsize = self._work.ctypes.data, self._work.itemsize
+        self._addresses = [base + itemsize * k * n for k in range(4)]
+        self._q, self._v, self._Lv = self._work[:n], self._work[n : 2 * n], self._work[3 * n :]
+        #: parameter vector (bytes) -> (M, M^-1 or None when singular, diagonal of M^-1 or None)
+        self._inverses: dict[bytes, tuple] = {}
+        self._lock = threading.Lock()
+
+    def _gradient(self, t: float, q, v, prm) -> NDArray[np.float64]:
+        r""":math:`L_v(t, q, v)` (the caller holds the lock)."""
+        prm = _vector(prm)
+        self._q[:] = q
+        self._v[:] = v
+        a = self._addresses
+        self._call(float(t), a[0], a[1], prm.ctypes.data, a[2], a[3])
+        return self._Lv.copy()
+
+    def inverse_mass(self, prm) -> tuple[NDArray, NDArray | None, NDArray | None]:
+        r"""``(M, M^{-1}, diag(M^{-1}))`` at ``prm``; the last two None when :math:`M` is
+        singular or not finite."""
+        prm = _vector(prm)
+        key = prm.tobytes()
+        with self._lock:
+            found = self._inverses.get(key)
+        if found is not None:
+            return found
+        mass = np.asarray(self._mass(prm), dtype=float).reshape(self.n, self.n)
+        inverse = diagonal = None
+        if np.isfinite(mass).all() and is_regular(mass):
+            inverse = np.linalg.inv(mass)
+            # a writable copy: numba types a read-only view as another (compiled) variant
+            diagonal = np.diag(inverse).copy()
+        found = (mass, inverse, diagonal)
+        with self._lock:
+            if len(self._inverses) >= _MASSES_KEPT:
+                self._inverses.pop(next(iter(self._inverses)))
+            self._inverses[key] = found
+        return found
+
+    def momenta(self, t: float, q, v, prm) -> NDArray[np.float64] | None:
+        r""":math:`p = L_v(t, q, v)`; None where :math:`M` is singular."""
+        if self.inverse_mass(prm)[1] is None:
+            return None
+        with self._lock:
+            return self._gradient(t, q, v, prm)
+
+    def velocities_of_quadratic(self, t: float, q, p, prm) -> NDArray[np.float64] | None:
+        r""":math:`v = M^{-1}(p - L_v(t, q, 0))`; None where :math:`M` is singular."""
+        inverse = self.inverse_mass(prm)[1]
+        if inverse is None:
+            return None
+        with self._lock:
+            base = self._gradient(t, q, np.zeros(self.n), prm)
+        return inverse @ (_vector(p) - base)
+
+    def many(self, fn, t0: float, q, v, prms) -> tuple[NDArray, NDArray, NDArray[np.bool_]]:
+        r"""(L_v, M, regular) at ``(t0, q[i], v[i])`` with parameters ``prms[i]``, stacked
+        (the interface of :meth:`PointLegendre.many`; ``fn`` is not needed)."""
+        q, v, prms = _vector(q), _vector(v), _vector(prms)
+        m, n = q.shape
+        Lv, masses = np.zeros((m, n)), np.zeros((m, n, n))
+        regular = np.zeros(m, dtype=bool)
+        with self._lock:
+            for i in range(m):
+                Lv[i] = self._gradient(t0, q[i], v[i], prms[i])
+        for i in range(m):
+            masses[i], inverse, _ = self.inverse_mass(prms[i])
+            regular[i] = inverse is not None
+        return Lv, masses, regular

@@ -14,7 +14,6 @@ import numpy as np
 from ..errors import DegenerateLagrangianError
 from ..loops.abi import LoopResult
 from ..method.composition import Composition
-from ..model.system import is_regular
 from ..reference import numpy as numpy_backend
 from ..reference import numpy_constrained
 from .outputs import RunOutputs
@@ -26,6 +25,8 @@ __all__ = ["LoopResult", "run_once", "run_segment", "substeps"]
 #: Störmer–Verlet as the one-stage composition (gamma, nodes); writable, as numba types
 #: a read-only array as another compiled variant
 _VERLET = (np.ones(1), np.ones(1))
+#: the sub-steps of each composition run so far (a copy per call would cost a microsecond)
+_COMPOSED: dict = {}
 
 
 def run_once(spec: RunSpec, segment: Segment) -> tuple[Trajectory, LoopResult]:
@@ -67,25 +68,25 @@ def substeps(method) -> tuple[np.ndarray, np.ndarray]:
     r"""The explicit loop's sub-steps of ``method``: :math:`(\gamma_i)` and their ends
     :math:`(c_i)`; Störmer–Verlet (``Galerkin(1)``) is ``([1.0], [1.0])``."""
     if isinstance(method, Composition):
-        return method.coefficients, method.nodes
+        if method not in _COMPOSED:
+            _COMPOSED[method] = (method.coefficients, method.nodes)  # writable copies
+        return _COMPOSED[method]
     return _VERLET
 
 
 def _explicit(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     """A composition of Störmer–Verlet (one stage: itself) with :math:`M^{-1}` formed once
-    (a diagonal M as its diagonal only)."""
+    per parameter vector (a diagonal M as its diagonal only), kept by the run spec's
+    Legendre transform."""
     from ..loops import explicit_loop
 
-    system, n = spec.system, spec.system.n
-    mass = system.evaluate("Lvv", segment.t0, segment.q0, np.zeros(n), segment.prm).reshape(n, n)
-    if not is_regular(mass):
+    mass, inverse, diagonal = spec.legendre.inverse_mass(segment.prm)
+    if inverse is None:
         raise DegenerateLagrangianError(f"the mass matrix d2L/dv2 = {mass} is singular")
     fn, _, _, periodic = spec.model
     # switches (loops.traits): a run-time test of either costs a quarter of a step here
     periodic = periodic if periodic.any() else None
-    inverse = np.linalg.inv(mass)
-    # a writable copy: numba types a read-only view as another (compiled) variant
-    diagonal = np.diag(inverse).copy() if spec.diagonal_mass else None
+    diagonal = diagonal if spec.diagonal_mass else None
     time_dependent = None if spec.autonomous else True
     s = segment
     return LoopResult(

@@ -194,6 +194,32 @@ def periodic_mask(system: LagrangianSystem) -> NDArray[np.bool_]:
     return np.array(system.periodic or (False,) * system.n, dtype=np.bool_)
 
 
+def point_legendre(system, path: str, summary, points):
+    """The compiled Legendre transform of a run (:mod:`.legendre`), or None.
+
+    The explicit loop's systems (constant mass) compile only the gradient, which
+    with the mass matrix formed once gives both directions; the others read
+    :math:`L_v` and :math:`L_{vv}` from the Hessian point function.
+    """
+    from .legendre import ConstantMassLegendre, PointLegendre
+
+    if path == "explicit":
+        gradient = points.compiled.get("point_gradient")
+        if gradient is None:
+            return None
+        n = system.n
+
+        def mass(prm):
+            return system.evaluate("Lvv", 0.0, np.zeros(n), np.zeros(n), prm)
+
+        return ConstantMassLegendre(gradient.address, n, mass)
+    hessian = points.compiled.get("point_hessian")
+    if hessian is None:
+        return None
+    pattern = summary.pattern if summary.banded else None
+    return PointLegendre(hessian.address, system.n, pattern)
+
+
 def reference_run_spec(system, method, path: str, tol: float, maxiter: int) -> RunSpec:
     """The :class:`RunSpec` of the NumPy reference backend (no compiled parts)."""
     return RunSpec(
@@ -212,13 +238,7 @@ def compiled_run_spec(
     names = point_function_names(path, summary.m)
     fn = tuple(int(address) for address in points.addresses(names))
     model = (fn, loop_traits(summary), banded_pattern(summary), periodic_mask(system))
-    legendre = None
-    hessian = points.compiled.get("point_hessian")
-    if hessian is not None and path != "explicit":
-        from .legendre import PointLegendre
-
-        pattern = summary.pattern if summary.banded else None
-        legendre = PointLegendre(hessian.address, system.n, pattern)
+    legendre = point_legendre(system, path, summary, points)
     couplings = (summary.has_Lqv, summary.has_fv)
     band = constrained_band(system, method.degree) if path == "constrained" else None
     return RunSpec(
