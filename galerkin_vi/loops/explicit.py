@@ -90,11 +90,6 @@ def explicit_loop(
     for k in range(n_steps):
         tk = t0 + k * h
         tk1 = t0 + (k + 1) * h
-        for a in range(n):
-            q_before[a] = qk[a]
-            p_before[a] = pk[a]
-            lost_before[a] = q_lost[a]
-            turns_before[a] = turns[a]
         finite = True
         for i in range(m):
             eta = gamma[i] * h
@@ -102,8 +97,17 @@ def explicit_loop(
             if time_dependent is not None:
                 # a(tau_i) before the drift; L_q(tau_{i-1}, q) is the last sub-step's
                 point_gradient(fn, tau, qk, zero, prm, lq_next, a1)
-            for a in range(n):
-                rhs[a] = pk[a] + 0.5 * eta * lq[a] - 0.5 * (a0[a] + a1[a])
+            if i == 0:
+                # the state before the step, saved in the first sub-step's pass over it
+                for a in range(n):
+                    q_before[a] = qk[a]
+                    p_before[a] = pk[a]
+                    lost_before[a] = q_lost[a]
+                    turns_before[a] = turns[a]
+                    rhs[a] = pk[a] + 0.5 * eta * lq[a] - 0.5 * (a0[a] + a1[a])
+            else:
+                for a in range(n):
+                    rhs[a] = pk[a] + 0.5 * eta * lq[a] - 0.5 * (a0[a] + a1[a])
             # q += eta M^{-1} rhs, written out here: an inlined helper taking these arrays
             # costs an atomic reference count increment and decrement per array and call,
             # a large share of a step this short
@@ -131,7 +135,8 @@ def explicit_loop(
             for a in range(n):
                 pk[a] += 0.5 * eta * (lq[a] + lq_next[a])
                 lq[a] = lq_next[a]
-                a0[a] = a1[a]
+                if time_dependent is not None:
+                    a0[a] = a1[a]  # autonomous: a is constant
                 if not abs(pk[a]) < 1e300 or not abs(qk[a]) < 1e300:
                     finite = False
         if not finite:
