@@ -47,9 +47,15 @@ def test_coefficients_satisfy_the_power_sum_conditions_of_their_order(order, sch
 
 
 def test_yoshida_triple_jump_closed_form():
-    gamma = gvi.Composition(4).coefficients
+    gamma = gvi.Composition(4, "yoshida").coefficients
     root = 2.0 ** (1 / 3)
     assert gamma == pytest.approx([1 / (2 - root), -root / (2 - root), 1 / (2 - root)], rel=1e-15)
+
+
+def test_suzuki_closed_form():
+    gamma = gvi.Composition(4).coefficients  # the default of order 4
+    g = 1 / (4 - 4 ** (1 / 3))
+    assert gamma == pytest.approx([g, g, 1 - 4 * g, g, g], rel=1e-14)
 
 
 def test_method_object_repr_equality_hash_pickling():

@@ -25,8 +25,8 @@ Schemes (``scheme=`` per order; the first is the default):
 order       scheme                    stages         source
 ==========  ========================  =============  ====================================
 2           ``"verlet"``              1              Störmer–Verlet itself
-4           ``"yoshida"``             3              [Yos90]_ triple jump, closed form
 4           ``"suzuki"``              5              [Suz90]_, closed form
+4           ``"yoshida"``             3              [Yos90]_ triple jump, closed form
 6           ``"kahan_li"``            9              [KL97]_ s9odr6a, [HLW06]_ §V.3.2
 6           ``"yoshida"``             7              [Yos90]_ solution A, [HLW06]_ §V.3.2
 6, 8, 10    ``"triple_jump"``         9, 27, 81      [Yos90]_ recursive, closed form
@@ -156,11 +156,12 @@ SCHEMES: dict[tuple[int, str], CompositionScheme] = {
     (10, "triple_jump"): CompositionScheme(10, 81, None, _YOSHIDA + ", recursive triple jump"),
 }  # fmt: skip
 
-#: the scheme ``Composition(order)`` takes: of the tabulated schemes of each order, the
-#: one with the smaller error constant per force evaluation on the benchmark problems
+#: the scheme ``Composition(order)`` takes: of each order's schemes, the one with the
+#: smallest error at an equal number of force evaluations on Kepler and Henon-Heiles
+#: (benchmarks/composition_schemes.py)
 DEFAULT_SCHEMES = {
     2: "verlet",
-    4: "yoshida",
+    4: "suzuki",
     6: "kahan_li",
     8: "kahan_li",
     10: "sofroniou_spaletta",
