@@ -128,15 +128,29 @@ def test_one_stage_composition_is_the_stormer_verlet_loop_bitwise(orbit):
     assert np.array_equal(runs[0].q, runs[1].q) and np.array_equal(runs[0].p, runs[1].p)
 
 
-@pytest.mark.parametrize("problem", [kepler(0.5), driven_oscillator()], ids=["kepler", "driven"])
-def test_a_step_is_the_stormer_verlet_steps_of_the_coefficients(problem):
+def _gauge_system() -> gvi.LagrangianSystem:
+    # a(t) . v with a(t) = cos t: p = v + cos t, and q'' = -q + sin t
+    q, v, t = sp.symbols("q v t")
+    return gvi.LagrangianSystem(v**2 / 2 + sp.cos(t) * v - q**2 / 2, [q], [v], t=t)
+
+
+@pytest.mark.parametrize(
+    ("system", "q0", "p0"),
+    [
+        (kepler(0.5).system, kepler(0.5).q0, kepler(0.5).v0),
+        (driven_oscillator().system, [1.0], [0.0]),
+        (_gauge_system(), [1.0], [0.5]),
+    ],
+    ids=["kepler", "driven", "a(t).v"],
+)
+def test_a_step_is_the_stormer_verlet_steps_of_the_coefficients(system, q0, p0):
     # independent of the sub-step loop: Galerkin(1) steps of gamma_i h from t_{i-1}
     method = gvi.Composition(6, "yoshida")
-    composed = gvi.Integrator(problem.system, method)
-    verlet = gvi.Integrator(problem.system, gvi.Galerkin(1))
+    composed = gvi.Integrator(system, method)
+    verlet = gvi.Integrator(system, gvi.Galerkin(1))
     h, t0 = 0.3, 0.7
-    q, p = composed.step(problem.q0, problem.v0, h, t0=t0)
-    q1, p1 = np.asarray(problem.q0, float), np.asarray(problem.v0, float)
+    q, p = composed.step(q0, p0, h, t0=t0)
+    q1, p1 = np.asarray(q0, float), np.asarray(p0, float)
     t = t0
     for g, end in zip(method.coefficients, method.nodes, strict=True):
         q1, p1 = verlet.step(q1, p1, g * h, t0=t)
