@@ -62,20 +62,36 @@ def fixed_point_degree() -> None:
 
 
 def adaptive_newton() -> None:
-    """AdaptiveIntegrator on Kepler e = 0.9, Gauss(4), 20 periods, fictitious step 0.2."""
+    """AdaptiveIntegrator by Newton or by the fixed point: Kepler e = 0.9 over 20 periods and
+    the Arenstorf orbit over one period (benchmarks/adaptive_three_body.py), Gauss(4)."""
+    from adaptive_three_body import PERIOD, Q0, V0, arenstorf
+
+    method = gvi.Galerkin(4, gvi.gauss_legendre(4))
     problem = problems.kepler(0.9)
     x, y = problem.system.q
-    g = gvi.encounter_scaling([sp.sqrt(x**2 + y**2)], 1.5)
-    method = gvi.Galerkin(4, gvi.gauss_legendre(4))
-    for fixed_point in (False, True):
-        adaptive = gvi.AdaptiveIntegrator(problem.system, method, g=g, fixed_point=fixed_point)
-        seconds = best_seconds(
-            lambda a=adaptive: a.integrate(
-                problem.q0, problem.v0, h=0.2, t_final=40 * np.pi, save_every=10**6
-            ),
-            repeat=7,
-        )
-        print(f"fixed_point={fixed_point}: {1e3 * seconds:.1f} ms")
+    kepler = (problem.system, gvi.encounter_scaling([sp.sqrt(x**2 + y**2)], 1.5))
+    three_body, r1, r2 = arenstorf()
+    cases = {
+        "kepler-0.9": (kepler, problem.q0, problem.v0, 40 * np.pi, (0.4, 0.2, 0.1, 0.05)),
+        "arenstorf": ((three_body, gvi.encounter_scaling([r1, r2], 1.5)), Q0, V0, PERIOD,
+                      (0.1, 0.02, 0.005)),
+    }  # fmt: skip
+    for name, ((system, g), q0, v0, t_final, steps) in cases.items():
+        for h in steps:
+            row = []
+            for fixed_point in (False, True):
+                adaptive = gvi.AdaptiveIntegrator(system, method, g=g, fixed_point=fixed_point)
+
+                def run(a=adaptive, h=h, q0=q0, v0=v0, t_final=t_final):
+                    return a.integrate(q0, v0, h=h, t_final=t_final, save_every=10**6)
+
+                seconds = best_seconds(run, repeat=5)
+                traj = run()
+                error = np.abs(traj.q[-1] - (q0 if name == "arenstorf" else problem.exact(
+                    np.array([t_final]))[0])).max() if traj.success else np.nan  # fmt: skip
+                row.append(f"fixed_point={fixed_point}: {1e3 * seconds:7.2f} ms, "
+                           f"error {error:.1e}")  # fmt: skip
+            print(f"{name} h={h}: " + "; ".join(row))
 
 
 def chunk_time() -> None:

@@ -55,10 +55,10 @@ class Integrator:
     fixed_point : bool
         With a mass matrix that varies, iterate the stage velocities by fixed
         point (the ``"varying_mass"`` loop; default) rather than by Newton. The
-        fixed point wins at moderate steps (double pendulum, s = 3-4); at steps
-        near its convergence limit (the long fictitious steps of
-        :class:`AdaptiveIntegrator`, which therefore passes ``False``) it hands
-        over to Newton, and Newton alone is faster.
+        fixed point wins at moderate steps (double pendulum, s = 3-4) and at the
+        small fictitious steps of :class:`AdaptiveIntegrator`, where Newton's
+        factors carried across steps stop short of round-off; at steps near its
+        convergence limit it hands over to Newton.
 
     Notes
     -----

@@ -8,16 +8,27 @@ with fixed fictitious steps and reports in physical time
 """
 
 from .integrator import AdaptiveIntegrator, adaptive_block
+from .step_function import StepFunction, default_step_function
 from .trajectory import AdaptiveTrajectory
-from .transform import CLOCK, CLOCK_RATE, ENERGY, PoincareTransform, encounter_scaling
+from .transform import (
+    CLOCK,
+    CLOCK_RATE,
+    CLOCK_WEIGHT,
+    ENERGY,
+    PoincareTransform,
+    encounter_scaling,
+)
 
 __all__ = [
     "CLOCK",
     "CLOCK_RATE",
+    "CLOCK_WEIGHT",
     "ENERGY",
     "AdaptiveIntegrator",
     "AdaptiveTrajectory",
     "PoincareTransform",
+    "StepFunction",
     "adaptive_block",
+    "default_step_function",
     "encounter_scaling",
 ]

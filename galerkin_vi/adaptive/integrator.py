@@ -36,8 +36,9 @@ from .physical import (
     save_interval,
 )
 from .rows import ExtendedRows
+from .step_function import StepFunction, default_step_function
 from .trajectory import AdaptiveTrajectory
-from .transform import ENERGY, PoincareTransform
+from .transform import CLOCK_WEIGHT, ENERGY, PoincareTransform, clock_weight
 
 __all__ = ["AdaptiveIntegrator", "adaptive_block"]
 
@@ -58,6 +59,25 @@ class AdaptiveIntegrator:
     :math:`g(q)\,\Delta\tau`. The energy :math:`E` is set from the initial
     state of each run.
 
+    **The default g.** Without ``g``, the step-size function is read off the
+    Lagrangian (:mod:`galerkin_vi.adaptive.step_function`): every term that is
+    singular where a distance :math:`r_k(q)` vanishes (an inverse distance
+    :math:`1/|q_i - q_j|` or :math:`1/|q - c|`, also through powers and square
+    roots) contributes, and
+
+    .. math::
+
+        g(q) = \Big(\sum_k r_k^{-3/2}\Big)^{-1} \approx \min_k r_k^{3/2},
+
+    :func:`encounter_scaling` with :math:`\alpha = 3/2`: near each encounter the
+    physical step is proportional to the local orbital time
+    :math:`\sqrt{r^3/(Gm)}` (Kepler's third law; Sundman's :math:`\alpha = 1`
+    would spend :math:`r^{-1/2}` times more steps per revolution on close passages
+    than on distant ones). Every distance at which L is singular enters, so an
+    encounter the user did not foresee is resolved too. Without any such term,
+    :math:`g = 1`. :attr:`step_function` holds the choice and :meth:`describe`
+    prints it.
+
     Parameters
     ----------
     system : LagrangianSystem
@@ -65,12 +85,13 @@ class AdaptiveIntegrator:
     method : Galerkin, optional
         Default ``Galerkin(2)``. With Gauss quadrature the clock is exactly the
         quadrature of :math:`g` over each step (see the module docstring).
-    g : sympy.Expr
+    g : sympy.Expr, optional
         Step-size function of q (and parameters), positive along the orbit;
-        :func:`encounter_scaling` builds the usual choice.
+        :func:`encounter_scaling` builds the usual choice. Default: read off
+        the singular terms of L (above).
     **options
-        Passed to :class:`Integrator` (``backend``, ``tol``, ``maxiter``;
-        ``fixed_point`` defaults to False here).
+        Passed to :class:`Integrator` (``backend``, ``tol``, ``maxiter``,
+        ``fixed_point``).
 
     Examples
     --------
@@ -92,25 +113,33 @@ class AdaptiveIntegrator:
         system: LagrangianSystem,
         method: Galerkin | None = None,
         *,
-        g: sp.Expr,
+        g: sp.Expr | None = None,
         **options,
     ) -> None:
+        if not isinstance(system, LagrangianSystem):
+            raise TypeError(f"system must be a LagrangianSystem, got {type(system).__name__}")
         if isinstance(method, Composition):
             raise ValueError(
                 f"AdaptiveIntegrator: {method!r} needs a separable Lagrangian with constant "
                 "mass, and the Poincare-transformed Lagrangian g(q) (L + H0) is not one "
                 "(its mass matrix is g(q) M); use a Galerkin method"
             )
-        self.transform = PoincareTransform(system, g)
+        #: the step-size function and where it came from (:meth:`describe`)
+        chosen = default_step_function(system) if g is None else None
+        self.transform = PoincareTransform(system, chosen.g if chosen is not None else g)
+        self.step_function = chosen if chosen is not None else StepFunction(self.transform.g)
         self.system = system
-        # the long fictitious steps are near the fixed point's limit, where it hands
-        # over to Newton: Newton alone takes less time there (docs/performance.md,
-        # "Measurements behind design choices")
-        options.setdefault("fixed_point", False)
         #: the integrator's options, for building it again in an executor's worker
         self.options = dict(options)
         self.integrator = Integrator(self.transform.extended, method, **options)
         self.method = self.integrator.method
+
+    def describe(self) -> str:
+        """The step-size function g in one line, and where it came from."""
+        return self.step_function.describe()
+
+    def __repr__(self) -> str:
+        return f"AdaptiveIntegrator({self.method!r}, {self.describe()})"
 
     # ------------------------------------------------------------------ set-up
     def _start(self, q0, v0, p0, t0, params):
@@ -121,15 +150,19 @@ class AdaptiveIntegrator:
             raise ValueError("give exactly one of v0 and p0")
         named = dict(zip(system.params, prm, strict=True))
         if p0 is None:
-            p0 = system.legendre(q0, state_vector("v0", v0, system.n), 0.0, named)
+            v0 = state_vector("v0", v0, system.n)
+            p0 = system.legendre(q0, v0, 0.0, named)
         p0 = state_vector("p0", p0, system.n)
+        if v0 is None:
+            v0 = system.inverse_legendre(q0, p0, 0.0, named)
         rate = float(self.transform.rate(q0, prm))
         if not (math.isfinite(rate) and rate > 0):
             raise ValueError(f"g(q0) must be positive and finite, got {rate!r}")
         energy = float(system.hamiltonian(q0, p0, 0.0, named))
         if not math.isfinite(energy):
             raise ValueError(f"the energy at (q0, p0) is not finite: {energy!r}")
-        extended_params = {**named, ENERGY: energy}
+        weight = clock_weight(system, q0, np.asarray(v0, dtype=float), prm, rate)
+        extended_params = {**named, ENERGY: energy, CLOCK_WEIGHT: weight}
         # p_z = 0: the clock runs at dt/dtau = g
         qh = np.append(q0, float(t0))
         ph = np.append(p0, 0.0)
