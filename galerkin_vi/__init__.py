@@ -23,6 +23,7 @@ from .errors import (
     RunFailureWarning,
 )
 from .integrator import Integrator
+from .method.composition import Composition
 from .method.galerkin import Galerkin
 from .method.quadrature import QuadratureRule, gauss_legendre, gauss_lobatto
 from .model.contacts import Contact
@@ -77,6 +78,7 @@ __all__ = [
     "AdaptiveTrajectory",
     "BoundaryValueResult",
     "ChaosMap",
+    "Composition",
     "ConditioningWarning",
     "Contact",
     "ConvergenceError",

@@ -11,12 +11,13 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from . import codegen
+from .method.composition import Composition
 from .method.galerkin import Galerkin
 from .model.system import LagrangianSystem
 from .reference import resolve_backend
 from .run.del_step import del_step
 from .run.ensemble import integrate_many
-from .run.loop_choice import loop_path
+from .run.loop_choice import composition_obstacle, loop_path
 from .run.smooth import integrate_smooth
 from .run.spec import RunSpec, compiled_run_spec, loop_traits, reference_run_spec
 from .run.stream import check_stream_arguments, stream_chunks
@@ -32,8 +33,11 @@ class Integrator:
     Parameters
     ----------
     system : LagrangianSystem
-    method : Galerkin, optional
-        Defaults to ``Galerkin(2)`` (order 4).
+    method : Galerkin or Composition, optional
+        Defaults to ``Galerkin(2)`` (order 4). A :class:`~galerkin_vi.Composition`
+        of Störmer–Verlet (explicit, orders 2–10) needs a separable Lagrangian with
+        constant mass matrix, no constraints, contacts or velocity-dependent
+        forces, and the numba backend.
     backend : {"auto", "numba", "numpy"}
         ``"numba"`` runs the whole time loop in compiled code (the loops
         compiled once per machine, the system's point functions once per system,
@@ -84,8 +88,10 @@ class Integrator:
         if not isinstance(system, LagrangianSystem):
             raise TypeError(f"system must be a LagrangianSystem, got {type(system).__name__}")
         method = Galerkin(2) if method is None else method
-        if not isinstance(method, Galerkin):
-            raise TypeError(f"method must be a Galerkin method, got {type(method).__name__}")
+        if not isinstance(method, (Galerkin, Composition)):
+            raise TypeError(
+                f"method must be a Galerkin or Composition method, got {type(method).__name__}"
+            )
         if not (isinstance(tol, numbers.Real) and 0 < tol < 1):
             raise ValueError(f"tol must be a real number in (0, 1), got {tol!r}")
         if (
@@ -94,7 +100,9 @@ class Integrator:
             or not 1 <= maxiter <= 255
         ):
             raise ValueError(f"maxiter must be an int in [1, 255], got {maxiter!r}")
-        if system.m and not method.collocated:
+        if isinstance(method, Composition):
+            _check_composition(system, method, resolve_backend(backend))
+        elif system.m and not method.collocated:
             raise ValueError(
                 f"{method!r}: a constrained system needs collocated control and quadrature "
                 "nodes, the constraints being imposed at the control points: use "
@@ -214,6 +222,12 @@ class Integrator:
         """The run spec of the general Newton loop, which carries the tangent map."""
         if self.backend != "numba":
             raise ValueError("tangent and sensitivity need the numba backend (compiled loops)")
+        if isinstance(self.method, Composition):
+            raise ValueError(
+                f"tangent and sensitivity: {self.method!r} has no stage equations whose "
+                "Jacobian carries the tangent map; use a Galerkin method (Galerkin(1) is "
+                "Stormer-Verlet)"
+            )
         if self.system.m:
             return constrained_tangent_spec(self.run_spec)
         return compiled_run_spec(
@@ -542,6 +556,11 @@ class Integrator:
         free control points of step :math:`k`. ``q0`` is at time ``t0``.
         """
         system = self.system
+        if isinstance(self.method, Composition):
+            from .run.composed_del import composition_del_step
+
+            prm = system.parameter_vector(params)
+            return composition_del_step(self, q0, q1, h, t0, prm)
         if system.m:
             raise ValueError(
                 "step_del: the position-only DEL form has no multipliers, so it does not "
@@ -551,4 +570,19 @@ class Integrator:
         prm = system.parameter_vector(params)
         return del_step(
             system, self.method.tables, q0, q1, h, t0, prm, tol=self.tol, maxiter=self.maxiter
+        )
+
+
+def _check_composition(system: LagrangianSystem, method: Composition, backend: str) -> None:
+    """ValueError when ``method`` cannot run on ``system`` with ``backend``."""
+    obstacle = composition_obstacle(system)
+    if obstacle is not None:
+        raise ValueError(
+            f"{method!r} composes explicit Stormer-Verlet steps, which need a separable "
+            f"L = v.M.v/2 + a(t).v - V(t, q) with constant M: {obstacle}; use a Galerkin method"
+        )
+    if backend != "numba":
+        raise ValueError(
+            f"{method!r} runs in the compiled explicit loop only: backend must be 'numba' "
+            f"(or 'auto' with numba installed), got {backend!r}"
         )

@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 import pytest
+import sympy as sp
 
 import galerkin_vi as gvi
 from galerkin_vi import problems
@@ -85,7 +86,9 @@ def test_chosen_configuration_meets_tol(request, name, t_final, tol):
     problem = request.getfixturevalue(name)
     choice = _choose(problem, t_final, tol)
     assert isinstance(choice, gvi.MethodChoice)
-    assert len(choice.candidates) == 2 * len(DEGREES)
+    # Gauss and Lobatto of each degree, and the compositions of orders 4-10 (separable L)
+    assert len(choice.candidates) == 2 * len(DEGREES) + 4
+    assert {c.method for c in choice.candidates} >= {gvi.Composition(p) for p in (4, 6, 8, 10)}
     assert all(c.ok for c in choice.candidates)
     assert choice.n_steps * choice.h == pytest.approx(t_final, rel=1e-12)
     assert choice.predicted_error <= tol / choice.safety * (1 + 1e-9)
@@ -100,7 +103,9 @@ def test_tight_tolerance_prefers_high_order(request, name, t_final):
     problem = request.getfixturevalue(name)
     choice = _choose(problem, t_final, 1e-10)
     assert choice.order > 2
-    first_order = [c for c in choice.candidates if c.method.degree == 1]
+    first_order = [
+        c for c in choice.candidates if isinstance(c.method, gvi.Galerkin) and c.method.degree == 1
+    ]
     assert len(first_order) == 2
     # measured: s = 1 needs 6e4 (oscillator) to 2e5 (Kepler) times more steps
     assert min(c.n_steps for c in first_order) >= 10 * choice.n_steps
@@ -127,7 +132,8 @@ def test_table_and_fields(kepler):
     for c in choice.candidates:
         assert isinstance(c, Candidate)
         assert c.label in table
-        assert c.order == 2 * c.method.degree
+        galerkin = isinstance(c.method, gvi.Galerkin)
+        assert c.order == (2 * c.method.degree if galerkin else c.method.order)
         assert 2 <= len(c.pilot_steps) <= 4
         assert c.time_per_step > 0 and math.isfinite(c.predicted_cost)
         # the slope between the two finest pilots is near the predicted order
@@ -149,6 +155,7 @@ def test_richardson_reference_and_relative_tol(oscillator):
         params=oscillator.params,
         degrees=(1, 2),
         families=("lobatto",),
+        compositions=(),
         relative=True,
     )
     assert len(choice.candidates) == 2
@@ -235,3 +242,12 @@ def test_warns_near_round_off(oscillator):
             families=("lobatto",),
             reference=oscillator.reference,
         )
+
+
+def test_compositions_are_candidates_only_where_the_structure_allows():
+    q, v = sp.symbols("q v")
+    varying = gvi.LagrangianSystem((1 + q**2 / 10) * v**2 / 2 - q**2 / 2, [q], [v])
+    choice = gvi.choose_method(
+        varying, [1.0], [0.0], t_final=2.0, tol=1e-4, degrees=(2,), families=("lobatto",)
+    )
+    assert [type(c.method) for c in choice.candidates] == [gvi.Galerkin]

@@ -58,6 +58,7 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 import galerkin_vi as gvi
+from galerkin_vi.run.loop_choice import composition_obstacle
 from galerkin_vi.tools import benchmark as bm
 from galerkin_vi.tools.benchmark import TARGETS, Curve, Sample, time_to_error
 
@@ -129,6 +130,10 @@ class BenchConfig:
     gvi_methods : tuple of (int, str)
         galerkin_vi degree and quadrature family (``"lobatto"``: ``gauss_lobatto(s + 1)``,
         ``"gauss"``: ``gauss_legendre(s)``).
+    compositions : tuple of int
+        Orders of ``gvi.Composition`` (explicit compositions of Störmer–Verlet, default
+        schemes), run on the problems whose Lagrangian allows them (separable, constant
+        mass); galerkin_vi curves like the others.
     handwritten : tuple of str
         ``"verlet"``, ``"gaussS"``, ``"gaussS-simplified"``, ``"gaussS-fixed-point"``,
         ``"lobattoR"``; a problem runs those its case allows (:attr:`Case.hw_allowed`).
@@ -167,6 +172,7 @@ class BenchConfig:
 
     problems: tuple[str, ...] = PROBLEMS[:-1]
     gvi_methods: tuple[tuple[int, str], ...] = ()
+    compositions: tuple[int, ...] = ()
     handwritten: tuple[str, ...] = ()
     ivp_methods: tuple[str, ...] = ()
     peers: tuple[str, ...] = ()
@@ -221,6 +227,7 @@ def quick_config() -> BenchConfig:
     return BenchConfig(
         problems=PROBLEMS[:-1],
         gvi_methods=((1, "lobatto"), (2, "gauss"), (3, "lobatto"), (4, "gauss"), (6, "gauss")),
+        compositions=(6, 8, 10),
         handwritten=("verlet", "gauss2", "gauss3", "lobatto4"),
         ivp_methods=("DOP853", "RK45"),
         peers=("numbalsoda", "ias15", "whfast"),
@@ -286,6 +293,7 @@ def full_config() -> BenchConfig:
     return BenchConfig(
         problems=PROBLEMS,
         gvi_methods=_GVI_ALL,
+        compositions=(4, 6, 8, 10),
         handwritten=(
             "verlet",
             "gauss1",
@@ -392,6 +400,25 @@ def _gvi_curve(case: Case, s: int, family: str, cfg: BenchConfig) -> Curve:
     return bm.galerkin_curve(
         case.problem.system,
         gvi.Galerkin(s, bm.quadrature(s, family)),
+        case.q0,
+        case.v0,
+        case.t_final,
+        params=case.problem.params,
+        n_start=case.n_start,
+        step_factor=cfg.step_factor,
+        energy_samples=cfg.energy_samples,
+        energy=energy,
+        warm_h=case.per_step_h,
+    )
+
+
+def _composition_curve(case: Case, order: int, cfg: BenchConfig) -> Curve:
+    def energy(traj):
+        return case.energy_from_momenta(traj.q, traj.p, traj)
+
+    return bm.galerkin_curve(
+        case.problem.system,
+        gvi.Composition(order),
         case.q0,
         case.v0,
         case.t_final,
@@ -636,6 +663,8 @@ def _whfast_curve(case: Case, cfg: BenchConfig) -> Curve:
 def _curves(case: Case, cfg: BenchConfig, log: Callable[[str], None]) -> list[Curve]:
     """Every curve of ``case`` under ``cfg`` (peers that do not apply or import are skipped)."""
     curves = [_gvi_curve(case, s, fam, cfg) for s, fam in cfg.gvi_methods]
+    if composition_obstacle(case.problem.system) is None:
+        curves += [_composition_curve(case, order, cfg) for order in cfg.compositions]
     curves += [_hw_curve(case, k, cfg) for k in cfg.handwritten if case.hw_allowed(k)]
     methods = [m for m in cfg.ivp_methods if case.ivp_methods is None or m in case.ivp_methods]
     curves += [_ivp_curve(case, m, cfg) for m in methods]

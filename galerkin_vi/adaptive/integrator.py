@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConvergenceError, RunFailureWarning
 from ..integrator import Integrator
+from ..method.composition import Composition
 from ..method.galerkin import Galerkin
 from ..model.system import LagrangianSystem
 from ..run.chunks import ProgressBar
@@ -117,6 +118,12 @@ class AdaptiveIntegrator:
     ) -> None:
         if not isinstance(system, LagrangianSystem):
             raise TypeError(f"system must be a LagrangianSystem, got {type(system).__name__}")
+        if isinstance(method, Composition):
+            raise ValueError(
+                f"AdaptiveIntegrator: {method!r} needs a separable Lagrangian with constant "
+                "mass, and the Poincare-transformed Lagrangian g(q) (L + H0) is not one "
+                "(its mass matrix is g(q) M); use a Galerkin method"
+            )
         #: the step-size function and where it came from (:meth:`describe`)
         chosen = default_step_function(system) if g is None else None
         self.transform = PoincareTransform(system, chosen.g if chosen is not None else g)

@@ -4,17 +4,39 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from ..method.composition import Composition
 from ..method.galerkin import Galerkin
 from ..method.stage_form import has_stage_form
 from ..method.velocity_stages import MIN_FIXED_POINT_DEGREE, has_velocity_stages
 from ..model.system import LagrangianSystem
 
-__all__ = ["loop_path"]
+__all__ = ["composition_obstacle", "loop_path"]
+
+
+def composition_obstacle(system: LagrangianSystem) -> str | None:
+    r"""Why a :class:`~galerkin_vi.Composition` of Störmer–Verlet cannot run on ``system``,
+    or None when it can.
+
+    The sub-steps are explicit only for :math:`L = \tfrac12 v^TMv + a(t)\cdot v - V(t, q)`
+    with constant :math:`M` and forces :math:`f(t, q)`, without constraints or contacts.
+    """
+    structure = system.structure
+    if system.m:
+        return "the system has constraints (multipliers make every sub-step implicit)"
+    if system.contacts:
+        return "the system has contacts (impacts are cut out of Galerkin steps)"
+    if not structure.constant_mass:
+        return "its mass matrix d2L/dv2 varies with q or t"
+    if not structure.zero_Lqv:
+        return "L couples positions and velocities (d2L/dq dv is not zero)"
+    if not structure.zero_fv:
+        return "its forces depend on the velocities"
+    return None
 
 
 def loop_path(
     system: LagrangianSystem,
-    method: Galerkin,
+    method: Galerkin | Composition,
     backend: str,
     specialize: bool,
     fixed_point: bool,
@@ -47,7 +69,12 @@ def loop_path(
       iteration contracts too slowly hands the run over to ``"newton"`` from the
       last saved state on;
     - ``"newton"``: the general Newton iteration (also the NumPy backend).
+
+    A :class:`~galerkin_vi.Composition` always takes ``"explicit"`` (the integrator
+    has checked :func:`composition_obstacle` and the backend).
     """
+    if isinstance(method, Composition):
+        return "explicit"
     if system.m:
         return "constrained"
     if backend != "numba" or not specialize:

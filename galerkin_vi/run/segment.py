@@ -13,13 +13,20 @@ import numpy as np
 
 from ..errors import DegenerateLagrangianError
 from ..loops.abi import LoopResult
+from ..method.composition import Composition
 from ..reference import numpy as numpy_backend
 from ..reference import numpy_constrained
 from .outputs import RunOutputs
 from .spec import RunSpec, Segment
 from .trajectory import Trajectory
 
-__all__ = ["LoopResult", "run_once", "run_segment"]
+__all__ = ["LoopResult", "run_once", "run_segment", "substeps"]
+
+#: Störmer–Verlet as the one-stage composition (gamma, nodes); writable, as numba types
+#: a read-only array as another compiled variant
+_VERLET = (np.ones(1), np.ones(1))
+#: the sub-steps of each composition run so far (a copy per call would cost a microsecond)
+_COMPOSED: dict = {}
 
 
 def run_once(spec: RunSpec, segment: Segment) -> tuple[Trajectory, LoopResult]:
@@ -57,9 +64,20 @@ def run_segment(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     return result
 
 
+def substeps(method) -> tuple[np.ndarray, np.ndarray]:
+    r"""The explicit loop's sub-steps of ``method``: :math:`(\gamma_i)` and their ends
+    :math:`(c_i)`; Störmer–Verlet (``Galerkin(1)``) is ``([1.0], [1.0])``."""
+    if isinstance(method, Composition):
+        if method not in _COMPOSED:
+            _COMPOSED[method] = (method.coefficients, method.nodes)  # writable copies
+        return _COMPOSED[method]
+    return _VERLET
+
+
 def _explicit(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
-    """Störmer–Verlet with :math:`M^{-1}` formed once per parameter vector (a diagonal M
-    as its diagonal only), kept by the run spec's Legendre transform."""
+    """A composition of Störmer–Verlet (one stage: itself) with :math:`M^{-1}` formed once
+    per parameter vector (a diagonal M as its diagonal only), kept by the run spec's
+    Legendre transform."""
     from ..loops import explicit_loop
 
     mass, inverse, diagonal = spec.legendre.inverse_mass(segment.prm)
@@ -74,7 +92,7 @@ def _explicit(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     return LoopResult(
         *explicit_loop(
             fn, periodic, time_dependent, s.q0, s.p0, s.t0, s.h, s.n_steps, s.save_every, s.prm,
-            inverse, diagonal, *out.arrays,
+            inverse, diagonal, *substeps(spec.method), *out.arrays,
         )
     )  # fmt: skip
 

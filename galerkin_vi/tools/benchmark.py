@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConvergenceError
 from ..integrator import Integrator
+from ..method.composition import Composition
 from ..method.galerkin import Galerkin
 from ..method.quadrature import QuadratureRule, gauss_legendre, gauss_lobatto
 from ..model.system import LagrangianSystem
@@ -110,8 +111,11 @@ def quadrature(s: int, family: str) -> QuadratureRule:
     raise ValueError(f"unknown quadrature family {family!r}")
 
 
-def method_label(method: Galerkin) -> str:
-    """Curve label of ``method``, e.g. ``"galerkin_vi s=2 Gauss(2)"``."""
+def method_label(method: Galerkin | Composition) -> str:
+    """Curve label of ``method``, e.g. ``"galerkin_vi s=2 Gauss(2)"`` or
+    ``"galerkin_vi composition p=8 kahan_li(17)"``."""
+    if isinstance(method, Composition):
+        return f"galerkin_vi composition p={method.order} {method.scheme}({method.stages})"
     rule = method.quadrature
     name = "Lobatto" if rule.family == "gauss_lobatto" else "Gauss"
     nodes = "" if method.nodes == "lobatto" else f", {method.nodes} nodes"
@@ -149,7 +153,7 @@ def tolerances(start: float, min_rtol: float, factor: float) -> list[float]:
 
 def galerkin_curve(
     system: LagrangianSystem,
-    method: Galerkin,
+    method: Galerkin | Composition,
     q0: ArrayLike,
     v0: ArrayLike,
     t_final: float,
@@ -166,7 +170,7 @@ def galerkin_curve(
     Parameters
     ----------
     system : LagrangianSystem
-    method : Galerkin
+    method : Galerkin or Composition
     q0, v0 : array_like, shape (n,)
         Initial positions and velocities.
     t_final : float

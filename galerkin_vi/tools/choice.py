@@ -88,9 +88,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import ConvergenceError
 from ..integrator import Integrator
+from ..method.composition import Composition
 from ..method.galerkin import Galerkin
 from ..method.quadrature import gauss_legendre, gauss_lobatto
 from ..model.system import LagrangianSystem
+from ..reference import resolve_backend
+from ..run.loop_choice import composition_obstacle
 
 __all__ = ["Candidate", "MethodChoice", "choose_method"]
 
@@ -115,7 +118,7 @@ class Candidate:
 
     Attributes
     ----------
-    method : Galerkin
+    method : Galerkin | Composition
     label : str
         Short name, e.g. ``"s=2 Gauss(2)"``.
     order : int
@@ -140,7 +143,7 @@ class Candidate:
         ``"ok"`` or why the candidate was dropped.
     """
 
-    method: Galerkin
+    method: Galerkin | Composition
     label: str
     order: int
     pilot_steps: tuple[int, ...]
@@ -165,7 +168,7 @@ class MethodChoice:
 
     Attributes
     ----------
-    method : Galerkin
+    method : Galerkin | Composition
         The chosen method.
     h : float
         Its step size, ``t_final / n_steps``.
@@ -189,7 +192,7 @@ class MethodChoice:
         Seconds spent choosing (pilots, reference and timings).
     """
 
-    method: Galerkin
+    method: Galerkin | Composition
     h: float
     n_steps: int
     predicted_error: float
@@ -260,7 +263,9 @@ def _fmt_seconds(x: float) -> str:
     return f"{x * 1e9:.3g} ns"
 
 
-def _label(method: Galerkin) -> str:
+def _label(method: Galerkin | Composition) -> str:
+    if isinstance(method, Composition):
+        return f"composition {method.scheme} p={method.order} ({method.stages} stages)"
     q = method.quadrature
     family = "Gauss" if q.family == "gauss_legendre" else "Lobatto"
     nodes = "" if method.nodes == "lobatto" else f", {method.nodes} nodes"
@@ -268,12 +273,17 @@ def _label(method: Galerkin) -> str:
 
 
 def _candidate_methods(
-    degrees: Sequence[int], families: Sequence[str], methods: Sequence[Galerkin] | None
-) -> list[Galerkin]:
+    degrees: Sequence[int],
+    families: Sequence[str],
+    methods: Sequence[Galerkin | Composition] | None,
+    compositions: Sequence[int] = (),
+) -> list[Galerkin | Composition]:
     if methods is not None:
         methods = list(methods)
-        if not methods or not all(isinstance(m, Galerkin) for m in methods):
-            raise TypeError("methods must be a non-empty sequence of Galerkin methods")
+        if not methods or not all(isinstance(m, (Galerkin, Composition)) for m in methods):
+            raise TypeError(
+                "methods must be a non-empty sequence of Galerkin or Composition methods"
+            )
         return methods
     if isinstance(families, str):
         raise TypeError(f"families must be a sequence of names, got the string {families!r}")
@@ -290,6 +300,9 @@ def _candidate_methods(
         for family in families:
             rule = gauss_legendre(s) if family == "gauss" else gauss_lobatto(s + 1)
             out.append(Galerkin(s, rule))
+    if isinstance(compositions, str):
+        raise TypeError(f"compositions must be a sequence of orders, got {compositions!r}")
+    out.extend(Composition(order) for order in sorted(set(compositions)))
     return out
 
 
@@ -308,14 +321,14 @@ class _Pilot:
     def __init__(self, system, q0, v0, p0, t0, params, span, backend):
         self.system, self.q0, self.v0, self.p0 = system, q0, v0, p0
         self.t0, self.params, self.span, self.backend = t0, params, span, backend
-        self.integrators: dict[Galerkin, Integrator] = {}
+        self.integrators: dict[Galerkin | Composition, Integrator] = {}
 
-    def integrator(self, method: Galerkin) -> Integrator:
+    def integrator(self, method: Galerkin | Composition) -> Integrator:
         if method not in self.integrators:
             self.integrators[method] = Integrator(self.system, method, backend=self.backend)
         return self.integrators[method]
 
-    def samples(self, method: Galerkin, n_steps: int) -> NDArray[np.float64]:
+    def samples(self, method: Galerkin | Composition, n_steps: int) -> NDArray[np.float64]:
         """Positions at the ``SAMPLES`` sample times, shape (SAMPLES, n)."""
         traj = self.integrator(method).integrate(
             self.q0,
@@ -330,7 +343,7 @@ class _Pilot:
         )
         return traj.q[1:]
 
-    def wall_time(self, method: Galerkin, h: float, n_steps: int) -> float:
+    def wall_time(self, method: Galerkin | Composition, h: float, n_steps: int) -> float:
         """Seconds of one call integrating ``n_steps`` steps of size ``h``."""
         integrator = self.integrator(method)
         start = time.perf_counter()
@@ -405,7 +418,7 @@ def _richardson_reference(pilot: _Pilot, degree: int) -> tuple[NDArray[np.float6
 
 def _probe(
     pilot: _Pilot,
-    method: Galerkin,
+    method: Galerkin | Composition,
     reference: NDArray[np.float64],
     reference_error: float,
     scale: float,
@@ -586,14 +599,14 @@ def _check_arguments(
 
 
 def _reference_samples(
-    pilot: _Pilot, reference: Callable | None, candidates: Sequence[Galerkin]
+    pilot: _Pilot, reference: Callable | None, candidates: Sequence[Galerkin | Composition]
 ) -> tuple[NDArray[np.float64], float]:
     """Reference positions at the pilot sample times and their estimated error."""
     times = pilot.t0 + pilot.span * np.arange(1, SAMPLES + 1) / SAMPLES
     if reference is not None:
         return _given_reference(reference, times, pilot.system.n), 0.0
     # at least as accurate as the most accurate candidate
-    degree = max(REFERENCE_MIN_DEGREE, *(m.degree for m in candidates))
+    degree = max(REFERENCE_MIN_DEGREE, *(m.order // 2 for m in candidates))
     return _richardson_reference(pilot, degree)
 
 
@@ -609,7 +622,7 @@ def _absolute_tolerance(
     return scale, atol
 
 
-def _dropped(method: Galerkin, status: str) -> Candidate:
+def _dropped(method: Galerkin | Composition, status: str) -> Candidate:
     """The row of a candidate without usable pilots, dropped for ``status``."""
     return Candidate(
         method=method,
@@ -628,7 +641,7 @@ def _dropped(method: Galerkin, status: str) -> Candidate:
 
 
 def _predicted(
-    method: Galerkin,
+    method: Galerkin | Composition,
     points: list[tuple[int, float]],
     span: float,
     t_final: float,
@@ -653,7 +666,7 @@ def _predicted(
 
 def _candidate_rows(
     pilot: _Pilot,
-    methods: Sequence[Galerkin],
+    methods: Sequence[Galerkin | Composition],
     ref: NDArray[np.float64],
     reference_error: float,
     scale: float,
@@ -711,7 +724,8 @@ def choose_method(
     params: Mapping | None = None,
     degrees: Sequence[int] = (1, 2, 3, 4, 6),
     families: Sequence[str] = ("gauss", "lobatto"),
-    methods: Sequence[Galerkin] | None = None,
+    methods: Sequence[Galerkin | Composition] | None = None,
+    compositions: Sequence[int] = (4, 6, 8, 10),
     relative: bool = False,
     safety: float = 4.0,
     pilot_span: float | None = None,
@@ -746,8 +760,13 @@ def choose_method(
     families : sequence of {"gauss", "lobatto"}
         ``"gauss"``: ``gauss_legendre(s)``; ``"lobatto"``: ``gauss_lobatto(s + 1)``;
         both of order :math:`2s`.
-    methods : sequence of Galerkin, optional
-        Explicit candidates instead of ``degrees`` × ``families``.
+    methods : sequence of Galerkin or Composition, optional
+        Explicit candidates instead of ``degrees`` × ``families`` (and ``compositions``).
+    compositions : sequence of int
+        Orders of :class:`~galerkin_vi.Composition` (explicit compositions of
+        Störmer–Verlet, default schemes) that join the candidates when the system
+        allows them (separable :math:`L`, constant mass, no constraints, contacts or
+        velocity-dependent forces) and the backend is numba; ``()`` for none.
     relative : bool
         Whether ``tol`` is relative to the size of the solution.
     safety : float
@@ -811,7 +830,8 @@ def choose_method(
         repeats=repeats,
         t0=t0,
     )
-    candidates = _candidate_methods(degrees, families, methods)
+    allowed = composition_obstacle(system) is None and resolve_backend(backend) == "numba"
+    candidates = _candidate_methods(degrees, families, methods, compositions if allowed else ())
 
     pilot = _Pilot(system, q0, v0, p0, t0, params, span, backend)
     ref, reference_error = _reference_samples(pilot, reference, candidates)

@@ -43,12 +43,20 @@ def _progress_bar(total: int):
     return tqdm(total=total, delay=2.0, unit="study", leave=False, disable=None)
 
 
-def study_count(selected: list, degrees: Sequence[int], families: Sequence[str]) -> int:
-    """Order studies ``verify`` runs: every degree and family, Lobatto only with constraints."""
-    return len(degrees) * sum(
+def study_count(
+    selected: list, degrees: Sequence[int], families: Sequence[str],
+    compositions: Sequence[int] = (),
+) -> int:  # fmt: skip
+    """Order studies ``verify`` runs: every degree and family, Lobatto only with constraints,
+    and every composition order on the problems that allow compositions."""
+    from ..run.loop_choice import composition_obstacle
+
+    galerkin = len(degrees) * sum(
         len(families) if not problem.system.m else int("lobatto" in families)
         for _, problem, _ in selected
     )
+    separable = sum(composition_obstacle(problem.system) is None for _, problem, _ in selected)
+    return galerkin + len(compositions) * separable
 
 
 def _positive_int(text: str) -> int:
@@ -68,7 +76,7 @@ def _verify(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"galerkin-vi verify: {exc}", file=sys.stderr)
         return 2
-    total = study_count(selected, args.degrees, args.families)
+    total = study_count(selected, args.degrees, args.families, args.compositions)
     if total == 0:
         # a CI gate that tested nothing must not pass
         what = "no problem" if not selected else "no study for the selected families"
@@ -91,7 +99,9 @@ def _verify(args: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     try:
-        rows = report.verify(selected, args.degrees, args.families, args.step_counts, progress)
+        rows = report.verify(
+            selected, args.degrees, args.families, args.step_counts, progress, args.compositions
+        )
     finally:
         if bar is not None:
             bar.close()
@@ -280,6 +290,18 @@ def build_parser() -> argparse.ArgumentParser:
         choices=sorted(FAMILIES),
         default=list(FAMILIES),
         help="lobatto: Gauss-Lobatto with s+1 points; gauss: Gauss-Legendre with s points",
+    )
+    verify.add_argument(
+        "--compositions",
+        nargs="*",
+        type=int,
+        choices=[2, 4, 6, 8, 10],
+        default=[],
+        metavar="ORDER",
+        help=(
+            "also study Composition(ORDER) (explicit compositions of Stormer-Verlet, default "
+            "schemes) on the problems with a separable L and constant mass: e.g. 4 6 8 10"
+        ),
     )
     verify.add_argument(
         "--step-counts",

@@ -34,9 +34,11 @@ import numpy as np
 from .. import problems
 from ..errors import OrderReductionWarning
 from ..integrator import Integrator
+from ..method.composition import Composition
 from ..method.galerkin import Galerkin
 from ..method.quadrature import gauss_legendre, gauss_lobatto
 from ..model.system import LagrangianSystem
+from ..run.loop_choice import composition_obstacle
 from .verification import OrderResult, measure_order
 
 __all__ = [
@@ -57,6 +59,9 @@ MOMENTUM_TOLERANCE = 1e-10
 # round-off floor are still pre-asymptotic (see tests/test_order.py).
 FLOAT64_MAX_DEGREE = 3
 MP_DIGITS = 40
+#: compositions of at least this order are studied in mpmath, at these step counts
+MP_COMPOSITION_ORDER = 8
+MP_COMPOSITION_COUNTS = (16, 32, 64)
 
 
 @dataclass(frozen=True)
@@ -172,14 +177,21 @@ def _reference(problem: problems.Problem) -> Callable[[float | np.ndarray], np.n
 
 def _order_study(
     problem: problems.Problem,
-    method: Galerkin,
+    method: Galerkin | Composition,
     mp_step_counts: Sequence[int],
     step_counts: Sequence[int] | None,
     integrator: Integrator,
     reference: Callable[[], Callable[[float | np.ndarray], np.ndarray] | None],
 ) -> tuple[OrderResult, str]:
     common = {"t_final": problem.t_final, "params": problem.params}
-    if method.degree > FLOAT64_MAX_DEGREE and not problem.system.m:
+    if isinstance(method, Composition) and method.order >= MP_COMPOSITION_ORDER:
+        # float64 errors above round-off are still pre-asymptotic at these orders
+        result = measure_order(
+            problem.system, method, problem.q0, problem.v0,
+            step_counts=list(step_counts or MP_COMPOSITION_COUNTS), dps=MP_DIGITS, **common,
+        )  # fmt: skip
+        return result, f"mpmath {MP_DIGITS} digits"
+    if isinstance(method, Galerkin) and method.degree > FLOAT64_MAX_DEGREE and not problem.system.m:
         result = measure_order(
             problem.system,
             method,
@@ -255,8 +267,10 @@ def verify(
     families: Sequence[str],
     step_counts: Sequence[int] | None = None,
     progress: Callable[[str], None] | None = None,
+    compositions: Sequence[int] = (),
 ) -> list[VerificationRow]:
-    """Run the order study of every (problem, degree, family).
+    """Run the order study of every (problem, degree, family), and of every composition
+    order on the problems that allow compositions.
 
     Parameters
     ----------
@@ -270,6 +284,10 @@ def verify(
         problem's mpmath step counts.
     progress : callable, optional
         Called with a short label before each study (progress bars).
+    compositions : sequence of int
+        Orders of :class:`~galerkin_vi.Composition` (default scheme) to study on
+        every problem with a separable Lagrangian and constant mass (rows of
+        degree 1, quadrature ``"composition <scheme>"``).
     """
     rows = []
     for name, problem, mp_counts in selected:
@@ -284,43 +302,58 @@ def verify(
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", OrderReductionWarning)
                     method = Galerkin(s, rule)
-                integrator = Integrator(problem.system, method)
-                result, precision = _order_study(
-                    problem, method, mp_counts, step_counts, integrator, reference
-                )
-                fitted = int(result.mask.sum())
-                finest_index = int(np.max(np.nonzero(result.mask)[0])) if fitted else -1
-                n_finest = int(result.step_counts[finest_index])
-                energy_error, drift = _invariants(problem, integrator, n_finest)
-                ok_order = fitted >= 3 and abs(result.order - method.order) <= ORDER_TOLERANCE
-                ok_momentum = drift is None or drift <= MOMENTUM_TOLERANCE
-                rows.append(
-                    VerificationRow(
-                        problem=name,
-                        degree=s,
-                        quadrature=repr(rule),
-                        predicted=int(method.order),
-                        measured=float(result.order),
-                        points_fitted=fitted,
-                        finest_error=float(result.errors[finest_index]) if fitted else math.nan,
-                        max_energy_error=energy_error,
-                        max_momentum_drift=drift,
-                        passed=bool(ok_order and ok_momentum),
-                        precision=precision,
-                        step_counts=[int(n) for n in result.step_counts],
-                        step_sizes=[float(h) for h in result.step_sizes],
-                        errors=[float(e) for e in result.errors],
-                        fitted=[bool(m) for m in result.mask],
-                    )
-                )
+                study = (problem, method, mp_counts, step_counts, reference)
+                rows.append(_study_row(name, s, repr(rule), *study))
+        if composition_obstacle(problem.system) is not None:
+            continue  # compositions need a separable L with constant mass
+        for order in compositions:
+            method = Composition(order)
+            if progress is not None:
+                progress(f"{name} {method!r}")
+            label = f"composition {method.scheme}"
+            study = (problem, method, mp_counts, step_counts, reference)
+            rows.append(_study_row(name, 1, label, *study))
     return rows
+
+
+def _study_row(
+    name: str, degree: int, label: str, problem: problems.Problem,
+    method: Galerkin | Composition, mp_counts, step_counts, reference,
+) -> VerificationRow:  # fmt: skip
+    """The order study and invariants of ``method`` on ``problem`` as one report row."""
+    integrator = Integrator(problem.system, method)
+    result, precision = _order_study(problem, method, mp_counts, step_counts, integrator, reference)
+    fitted = int(result.mask.sum())
+    finest_index = int(np.max(np.nonzero(result.mask)[0])) if fitted else -1
+    n_finest = int(result.step_counts[finest_index])
+    energy_error, drift = _invariants(problem, integrator, n_finest)
+    ok_order = fitted >= 3 and abs(result.order - method.order) <= ORDER_TOLERANCE
+    ok_momentum = drift is None or drift <= MOMENTUM_TOLERANCE
+    return VerificationRow(
+        problem=name,
+        degree=degree,
+        quadrature=label,
+        predicted=int(method.order),
+        measured=float(result.order),
+        points_fitted=fitted,
+        finest_error=float(result.errors[finest_index]) if fitted else math.nan,
+        max_energy_error=energy_error,
+        max_momentum_drift=drift,
+        passed=bool(ok_order and ok_momentum),
+        precision=precision,
+        step_counts=[int(n) for n in result.step_counts],
+        step_sizes=[float(h) for h in result.step_sizes],
+        errors=[float(e) for e in result.errors],
+        fitted=[bool(m) for m in result.mask],
+    )
 
 
 def format_table(rows: Sequence[VerificationRow]) -> str:
     """The report as a fixed-width text table."""
     width = max([20, *(len(r.problem) for r in rows)])
+    rule = max([18, *(len(r.quadrature) for r in rows)])
     header = (
-        f"{'problem':<{width}} {'s':>2} {'quadrature':<18} {'predicted':>9} {'measured':>9} "
+        f"{'problem':<{width}} {'s':>2} {'quadrature':<{rule}} {'predicted':>9} {'measured':>9} "
         f"{'max energy err':>14} {'max momentum drift':>18} {'verdict':>7}"
     )
     lines = [header, "-" * len(header)]
@@ -328,7 +361,7 @@ def format_table(rows: Sequence[VerificationRow]) -> str:
         energy = "—" if r.max_energy_error is None else f"{r.max_energy_error:.1e}"
         drift = "—" if r.max_momentum_drift is None else f"{r.max_momentum_drift:.1e}"
         lines.append(
-            f"{r.problem:<{width}} {r.degree:>2} {r.quadrature:<18} {r.predicted:>9d} "
+            f"{r.problem:<{width}} {r.degree:>2} {r.quadrature:<{rule}} {r.predicted:>9d} "
             f"{r.measured:>9.2f} {energy:>14} {drift:>18} "
             f"{'pass' if r.passed else 'FAIL':>7}"
         )

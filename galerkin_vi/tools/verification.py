@@ -369,7 +369,8 @@ def _measure_order_mp(
     """:func:`measure_order` in mpmath arithmetic (see its ``dps`` parameter)."""
     import mpmath
 
-    from ..reference.mpmath import MpIntegrator
+    from ..method.composition import Composition
+    from ..reference.mpmath import MpComposition, MpIntegrator
 
     if counts is None:
         raise ValueError("dps mode needs explicit step_counts")
@@ -377,7 +378,8 @@ def _measure_order_mp(
         raise ValueError("dps mode starts from v0 (give v0, not p0)")
     if norm != "final":
         raise ValueError("dps mode measures the final error only (norm='final')")
-    mp_integrator = MpIntegrator(system, method, dps=dps)
+    extended = MpComposition if isinstance(method, Composition) else MpIntegrator
+    mp_integrator = extended(system, method, dps=dps)
     prm = system.parameter_vector(params)
     q0 = np.asarray(q0, dtype=float)
     v0 = np.asarray(v0, dtype=float)
