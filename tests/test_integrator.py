@@ -444,7 +444,7 @@ def test_integrate_requires_keyword_h_and_n_steps(pendulum):
         (dict(tol="1e-14"), ValueError, "tol must be"),
         (dict(maxiter=0), ValueError, "maxiter must be an int in"),
         (dict(maxiter=2.0), ValueError, "maxiter must be an int in"),
-        (dict(method="galerkin"), TypeError, "method must be a Galerkin method"),
+        (dict(method="galerkin"), TypeError, "method must be a Galerkin or Composition method"),
     ],
 )
 def test_integrator_bad_arguments(pendulum, kwargs, error, match):
