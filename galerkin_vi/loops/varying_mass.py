@@ -119,6 +119,8 @@ def varying_mass_loop(
     rhs = np.zeros(n)
     dq = np.zeros(n)
     dp = np.zeros(n)
+    inv_scale_q = np.zeros(n)
+    inv_scale_p = np.zeros(n)
     qk = q0.copy()
     q_lost = np.zeros(n)
     turns = np.zeros(n)
@@ -155,13 +157,12 @@ def varying_mass_loop(
                         accf += X[i, j] * F_prev[j, a]
                     V[i, a] = accv
                     F[i, a] = accf
-        size_q = 0.0
-        size_p = 0.0
+        # each coordinate's change against its own size, 1/(1 + |q_a|): against the largest
+        # |q|, the clock of an adaptive run (t up to 600 on Kepler) let the round-off test
+        # below accept position changes of 1e-8 as converged
         for a in range(n):
-            size_q = max(size_q, abs(qk[a]))
-            size_p = max(size_p, abs(pk[a]))
-        inv_scale_q = 1.0 / (1.0 + size_q)
-        inv_scale_p = 1.0 / (1.0 + size_p)
+            inv_scale_q[a] = 1.0 / (1.0 + abs(qk[a]))
+            inv_scale_p[a] = 1.0 / (1.0 + abs(pk[a]))
         status = STATUS_NEWTON_FAILED
         its = 0
         change = np.inf
@@ -169,9 +170,8 @@ def varying_mass_loop(
         residual = 0.0
         while True:
             # the stage positions and momenta of the current V and F (the first iterate
-            # when its = 0); after a sweep, whether and how far they moved, against the
-            # step's scale (a multiplication: dividing by each entry's own size would be
-            # a noticeable share of the sweep)
+            # when its = 0); after a sweep, whether and how far they moved, against each
+            # coordinate's scale (a multiplication by the inverses formed once per step)
             change_q = 0.0
             change_p = 0.0
             moved = False
@@ -186,8 +186,8 @@ def varying_mass_loop(
                     new_p = pk[a] + h * accp
                     if new_q != Q[i, a] or new_p != P[i, a]:
                         moved = True
-                        dq_abs = abs(new_q - Q[i, a])
-                        dp_abs = abs(new_p - P[i, a])
+                        dq_abs = abs(new_q - Q[i, a]) * inv_scale_q[a]
+                        dp_abs = abs(new_p - P[i, a]) * inv_scale_p[a]
                         if dq_abs > change_q:
                             change_q = dq_abs
                         if not dp_abs <= change_p:  # also catches NaN
@@ -195,7 +195,7 @@ def varying_mass_loop(
                     Q[i, a] = new_q
                     P[i, a] = new_p
             if its > 0:
-                change = max(change_q * inv_scale_q, change_p * inv_scale_p)
+                change = max(change_q, change_p)
                 if not moved:
                     status = STATUS_OK
                     break
