@@ -17,7 +17,11 @@ from .model.system import LagrangianSystem
 from .reference import resolve_backend
 from .run.del_step import del_step
 from .run.ensemble import integrate_many
+<<<<<<< HEAD
 from .run.loop_choice import composition_obstacle, loop_path
+=======
+from .run.loop_choice import hand_over, loop_path
+>>>>>>> adaptive2
 from .run.smooth import integrate_smooth
 from .run.spec import RunSpec, compiled_run_spec, loop_traits, reference_run_spec
 from .run.stream import check_stream_arguments, stream_chunks
@@ -52,13 +56,17 @@ class Integrator:
     specialize : bool
         Let the structure of the problem pick a cheaper time loop (see
         :attr:`kernel_path`); ``False`` forces the general Newton loop.
-    fixed_point : bool
+    fixed_point : bool or "persistent"
         With a mass matrix that varies, iterate the stage velocities by fixed
         point (the ``"varying_mass"`` loop; default) rather than by Newton. The
         fixed point wins at moderate steps (double pendulum, s = 3-4) and at the
         small fictitious steps of :class:`AdaptiveIntegrator`, where Newton's
-        factors carried across steps stop short of round-off; at steps near its
-        convergence limit it hands over to Newton.
+        factors carried across steps stop short of round-off. With ``True`` it
+        hands the rest of the run (or chunk) over to Newton when a sweep contracts
+        by less than 0.3 or the sweeps per step average over 7 more than the
+        stages; with ``"persistent"`` (the adaptive integrator's default) only
+        when the sweeps diverge or would exceed ``maxiter``
+        (:class:`galerkin_vi.run.loop_choice.HandOver`).
 
     Notes
     -----
@@ -83,7 +91,7 @@ class Integrator:
         tol: float = 1e-14,
         maxiter: int = 30,
         specialize: bool = True,
-        fixed_point: bool = True,
+        fixed_point: bool | str = True,
     ) -> None:
         if not isinstance(system, LagrangianSystem):
             raise TypeError(f"system must be a LagrangianSystem, got {type(system).__name__}")
@@ -114,7 +122,8 @@ class Integrator:
         self.tol = float(tol)
         self.maxiter = int(maxiter)
         self.specialize = bool(specialize)
-        self.fixed_point = bool(fixed_point)
+        hand_over(fixed_point)  # checks the value
+        self.fixed_point = fixed_point
 
     @property
     def kernel_path(self) -> str:
@@ -215,6 +224,7 @@ class Integrator:
             self._summary,
             self._points,
             constant_mass=self.uses_constant_mass,
+            hand_over=hand_over(self.fixed_point),
         )
 
     @cached_property

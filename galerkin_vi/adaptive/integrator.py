@@ -45,6 +45,10 @@ __all__ = ["AdaptiveIntegrator", "adaptive_block"]
 #: steps of the first chunk of a run to a final time, before the rate dt/dtau is known
 _FIRST_CHUNK = 256
 _MAX_CHUNK = 1_000_000
+#: a chunk to a final time covers the predicted steps and this share more: the mean
+#: dt/dtau over the run so far misses the steps left by about one orbit's steps times
+#: (steps left) / (steps done)
+_MARGIN = 0.01
 #: largest chunk of a run watched for a terminal event: the steps computed past the event
 _WATCHED_CHUNK = 4096
 #: secant iterations placing the last step on the final time
@@ -91,7 +95,9 @@ class AdaptiveIntegrator:
         the singular terms of L (above).
     **options
         Passed to :class:`Integrator` (``backend``, ``tol``, ``maxiter``,
-        ``fixed_point``).
+        ``fixed_point``). ``fixed_point`` defaults to ``"persistent"``: the
+        stage velocities' fixed point is kept through the slow sweeps near close
+        encounters and hands over to Newton only when it diverges.
 
     Examples
     --------
@@ -130,8 +136,8 @@ class AdaptiveIntegrator:
         self.step_function = chosen if chosen is not None else StepFunction(self.transform.g)
         self.system = system
         #: the integrator's options, for building it again in an executor's worker
-        self.options = dict(options)
-        self.integrator = Integrator(self.transform.extended, method, **options)
+        self.options = {"fixed_point": "persistent", **options}
+        self.integrator = Integrator(self.transform.extended, method, **self.options)
         self.method = self.integrator.method
 
     def describe(self) -> str:
@@ -536,7 +542,8 @@ class AdaptiveIntegrator:
             abs(t_final - float(qh[-1])) if n_steps is None else n_steps,
             "step" if n_steps is not None else "time",
         )
-        interrupted = landing = False
+        interrupted = False
+        crossing = None  # the clocks around the step that passes t_final
         try:
             while chunk > 0:
                 run = self._chunk(rows, h, chunk, params, save_every)
@@ -545,9 +552,11 @@ class AdaptiveIntegrator:
                 if t_final is not None:
                     past = np.flatnonzero((clock[1:] - t_final) * direction >= 0)
                 # steps that stay before t_final (an interrupted chunk has fewer)
+                before = rows.last_clock_before()
                 rows.extend(run, int(past[0]) if past.size else len(run) - 1)
                 if past.size:
-                    landing = True
+                    j = int(past[0])
+                    crossing = (float(clock[j - 1]) if j > 0 else before, float(clock[j + 1]))
                     break
                 if run.status == RunStatus.INTERRUPTED:
                     interrupted = True
@@ -556,8 +565,8 @@ class AdaptiveIntegrator:
                     break
                 bar.update(rows.steps if n_steps is not None else abs(clock[-1] - rows.first_clock))
                 chunk = self._next_chunk(rows, h, n_steps, t_final, largest)
-            if landing:
-                self._land(rows, h, t_final, params)
+            if crossing is not None:
+                self._land(rows, h, t_final, params, crossing)
             bar.update(rows.steps if n_steps is not None else abs(t_final - rows.first_clock))
         except KeyboardInterrupt:
             interrupted = True
@@ -598,29 +607,47 @@ class AdaptiveIntegrator:
 
         The mean of the whole run so far, not of the last chunk, which may have
         ended at a close encounter (dt/dtau = g small) and would overestimate the
-        steps still needed by up to the ratio of g's extremes. Chunks cover half of
-        the prediction and grow at most 4x: a few more calls, no large overshoot.
+        steps still needed by up to the ratio of g's extremes. A chunk covers the
+        prediction and ``_MARGIN`` of it more, so that most runs end in the chunk
+        after the first (each chunk is a call of about 50 µs, and a restart of the
+        extrapolated stages); it grows at most 4x, so a prediction from a short,
+        unrepresentative start overshoots by at most 4x the steps done.
         """
         done = rows.steps
         if n_steps is not None:
             return min(n_steps - done, largest, 4 * done)
         rate = (float(rows.last_q[-1]) - rows.first_clock) / rows.last_tau
         need = (t_final - float(rows.last_q[-1])) / (rate * h) if rate > 0 else _FIRST_CHUNK
-        return int(min(largest, 4 * done, max(_FIRST_CHUNK, 0.5 * need + 16)))
+        return int(min(largest, 4 * done, max(_FIRST_CHUNK, (1 + _MARGIN) * need + 16)))
 
-    def _land(self, rows: ExtendedRows, h: float, t_final: float, params) -> None:
-        """Append one step of size in (0, h] whose clock lands on ``t_final``."""
-        run, work = self._landing(rows.last_q, rows.last_p, rows.last_tau, h, t_final, params)
+    def _land(self, rows: ExtendedRows, h: float, t_final: float, params, crossing: tuple) -> None:
+        """Append one step of size in (0, h] whose clock lands on ``t_final``.
+
+        ``crossing`` holds the clocks one step before the last row (None at the
+        run's start) and one step after it, past ``t_final``: computed already,
+        they start the secant iteration without a step.
+        """
+        before, after = crossing
+        run, work = self._landing(
+            rows.last_q, rows.last_p, rows.last_tau, h, t_final, params, known=(before, after)
+        )
         rows.work += work
         rows.extend(run, 1)
         rows.last_q[-1] = t_final  # within a few ulps; exact for the caller
 
-    def _landing(self, q, p, tau, h, target, params) -> tuple[Trajectory, int]:
-        """The step of size in (0, h] (or [h, 0)) from (q, p) whose clock lands on ``target``,
+    def _landing(
+        self, q, p, tau, h, target, params, known: tuple | None = None
+    ) -> tuple[Trajectory, int]:
+        r"""The step of size in (0, h] (or [h, 0)) from (q, p) whose clock lands on ``target``,
         and the iterations spent finding it.
 
         The clock after a step is monotone in its size (dt/dtau = g > 0); the
-        secant method on it, safeguarded by bisection, takes 3-6 single steps.
+        secant method on it, safeguarded by bisection, takes 2-6 single steps.
+        ``known = (t_{-1}, t_1)``: the clocks a step of ``-h`` before (None if
+        unknown) and a step of ``h`` after (past ``target``). Then the step of
+        ``h`` is not taken again, and the first size is the inverse quadratic
+        interpolation through :math:`(t_{-1}, -h), (t_0, 0), (t_1, h)`, whose
+        error is :math:`O(h^3)` against the linear one's :math:`O(h^2)`.
         """
         integ = self.integrator
         tiny = 4 * np.finfo(float).eps * max(1.0, abs(target))
@@ -636,14 +663,25 @@ class AdaptiveIntegrator:
 
         lo, f_lo = 0.0, float(q[-1]) - target  # short of the target
         hi = h
-        f_hi, best = miss(hi)  # at or past the target
+        best = None
+        if known is None:
+            f_hi, best = miss(hi)  # at or past the target
+            first = None
+        else:
+            f_hi = known[1] - target
+            first = landing_guess(known[0], float(q[-1]), known[1], h, target)
         a, f_a, b, f_b = lo, f_lo, hi, f_hi
         for _ in range(_LANDING_ITERATIONS):
-            if abs(f_b) <= tiny:
+            if abs(f_b) <= tiny and best is not None:
                 break
-            guess = b - f_b * (b - a) / (f_b - f_a) if f_b != f_a else 0.5 * (lo + hi)
-            if not min(lo, hi) < guess < max(lo, hi):
+            if first is not None:
+                guess, first = first, None
+            elif f_b != f_a:
+                guess = b - f_b * (b - a) / (f_b - f_a)
+            else:
                 guess = 0.5 * (lo + hi)
+            if not min(lo, hi) < guess < max(lo, hi):
+                guess = 0.5 * (lo + hi) if abs(f_b) > tiny else b
             f_guess, run = miss(guess)
             a, f_a, b, f_b = b, f_b, guess, f_guess
             best = run
@@ -745,6 +783,30 @@ class AdaptiveIntegrator:
             f"{message} .partial holds the states before it in physical time.",
             step=exc.step, t=t, residual=exc.residual, partial=partial,
         )  # fmt: skip
+
+
+def landing_guess(t_before: float | None, t_0: float, t_after: float, h: float,
+                  target: float) -> float:  # fmt: skip
+    r"""The fictitious size :math:`\sigma \in (0, h)` at which the clock reaches ``target``.
+
+    Inverse quadratic interpolation of :math:`\tau(t)` through
+    :math:`(t_{-1}, -h), (t_0, 0), (t_1, h)` (the clocks of three consecutive steps),
+
+    .. math::
+
+        \sigma = -h\,\frac{(T - t_0)(T - t_1)}{(t_{-1} - t_0)(t_{-1} - t_1)}
+                 + h\,\frac{(T - t_{-1})(T - t_0)}{(t_1 - t_{-1})(t_1 - t_0)},
+
+    or the linear one through the last two when ``t_before`` is None or the
+    three clocks are not strictly monotone; clipped into the open bracket.
+    """
+    linear = h * (target - t_0) / (t_after - t_0)
+    if t_before is None or not (t_before - t_0) * (t_0 - t_after) > 0:
+        return linear
+    back = (target - t_0) * (target - t_after) / ((t_before - t_0) * (t_before - t_after))
+    ahead = (target - t_before) * (target - t_0) / ((t_after - t_before) * (t_after - t_0))
+    sigma = h * (ahead - back)
+    return sigma if 0 < sigma / h < 1 else linear
 
 
 def adaptive_block(spec: tuple, q0s, name: str, x, params: Sequence, run: dict) -> list:

@@ -50,6 +50,14 @@ class ExtendedRows:
     def first_clock(self) -> float:
         return float(self.q[0][0, -1])
 
+    def last_clock_before(self) -> float | None:
+        """The clock of the row before the last, or None when there is one row only."""
+        if len(self.q[-1]) >= 2:
+            return float(self.q[-1][-2, -1])
+        if len(self.q) >= 2:
+            return float(self.q[-2][-1, -1])
+        return None
+
     def extend(self, run: Trajectory, steps: int) -> None:
         """Append the states after the first ``steps`` steps of ``run``."""
         if steps <= 0:

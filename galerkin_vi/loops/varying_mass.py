@@ -44,24 +44,15 @@ from .point import point_mass_row
 from .stage_form import too_slow
 
 __all__ = [
-    "FIXED_POINT_CONTRACTION",
     "ROUNDOFF_CHANGE",
-    "SWEEP_ALLOWANCE",
     "SWEEP_MEMORY",
     "varying_mass_loop",
 ]
 
-#: hand over to Newton when a sweep's change is more than this times the one before
-#: (at 0.3 a digit costs two sweeps, about one Newton iteration of a small system)
-FIXED_POINT_CONTRACTION = 0.3
 #: a change (relative to 1 + |x|) that stops decreasing below this is round-off
 #: oscillation of the last bits, and the iteration has converged
 ROUNDOFF_CHANGE = 1e-10
-#: hand over to Newton when the sweeps per step, averaged over the steps after the first
-#: (weight SWEEP_MEMORY of the past), exceed this plus the number of stages: about where
-#: the fixed point stops beating Newton on the double pendulum; smaller allowances hand
-#: over runs it is winning, larger ones hand over late (docs/performance.md)
-SWEEP_ALLOWANCE = 7
+#: weight of the past in the running mean of the sweeps per step that ``allowance`` bounds
 SWEEP_MEMORY = 0.75
 
 
@@ -86,6 +77,8 @@ def varying_mass_loop(
     X,
     tol,
     maxiter,
+    contraction,
+    allowance,
     t_out,
     q_out,
     p_out,
@@ -97,13 +90,16 @@ def varying_mass_loop(
 
     ``b, c, A, Abar, X`` are :class:`~galerkin_vi.method.velocity_stages.VaryingMassTables`;
     ``pattern`` must be ``None`` (the mass matrix is stored dense). ``v0`` starts the
-    stage velocities of the first step. A step whose iteration fails (or contracts
-    by less than ``FIXED_POINT_CONTRACTION``, or would need more than ``maxiter``
-    sweeps by :func:`.too_slow`'s prediction), and the step after the sweeps per step
-    have come to average more than ``SWEEP_ALLOWANCE + r``, is not taken; the state
+    stage velocities of the first step. A step whose iteration fails (or whose sweeps
+    shrink the change by a factor above ``contraction``, or would need more than
+    ``maxiter`` sweeps by :func:`.too_slow`'s prediction), and the step after the sweeps
+    per step have come to average more than ``allowance + r``, is not taken (an infinite
+    ``contraction`` leaves only ``maxiter`` and divergence to overflow); the state
     before it is the last row (saved even when not due), from which the caller
-    continues with Newton. Returns (status, steps completed, rows saved, max momentum
-    residual, last change).
+    continues with Newton. ``contraction`` and ``allowance`` are run-time data
+    (:class:`galerkin_vi.run.loop_choice.HandOver`): the ordinary runs hand over
+    early, the adaptive ones keep the fixed point through slow sweeps. Returns
+    (status, steps completed, rows saved, max momentum residual, last change).
     """
     n = q0.shape[0]
     r = b.shape[0]
@@ -123,6 +119,8 @@ def varying_mass_loop(
     rhs = np.zeros(n)
     dq = np.zeros(n)
     dp = np.zeros(n)
+    inv_scale_q = np.zeros(n)
+    inv_scale_p = np.zeros(n)
     qk = q0.copy()
     q_lost = np.zeros(n)
     turns = np.zeros(n)
@@ -159,13 +157,12 @@ def varying_mass_loop(
                         accf += X[i, j] * F_prev[j, a]
                     V[i, a] = accv
                     F[i, a] = accf
-        size_q = 0.0
-        size_p = 0.0
+        # each coordinate's change against its own size, 1/(1 + |q_a|): against the largest
+        # |q|, the clock of an adaptive run (t up to 600 on Kepler) let the round-off test
+        # below accept position changes of 1e-8 as converged
         for a in range(n):
-            size_q = max(size_q, abs(qk[a]))
-            size_p = max(size_p, abs(pk[a]))
-        inv_scale_q = 1.0 / (1.0 + size_q)
-        inv_scale_p = 1.0 / (1.0 + size_p)
+            inv_scale_q[a] = 1.0 / (1.0 + abs(qk[a]))
+            inv_scale_p[a] = 1.0 / (1.0 + abs(pk[a]))
         status = STATUS_NEWTON_FAILED
         its = 0
         change = np.inf
@@ -173,9 +170,8 @@ def varying_mass_loop(
         residual = 0.0
         while True:
             # the stage positions and momenta of the current V and F (the first iterate
-            # when its = 0); after a sweep, whether and how far they moved, against the
-            # step's scale (a multiplication: dividing by each entry's own size would be
-            # a noticeable share of the sweep)
+            # when its = 0); after a sweep, whether and how far they moved, against each
+            # coordinate's scale (a multiplication by the inverses formed once per step)
             change_q = 0.0
             change_p = 0.0
             moved = False
@@ -190,8 +186,8 @@ def varying_mass_loop(
                     new_p = pk[a] + h * accp
                     if new_q != Q[i, a] or new_p != P[i, a]:
                         moved = True
-                        dq_abs = abs(new_q - Q[i, a])
-                        dp_abs = abs(new_p - P[i, a])
+                        dq_abs = abs(new_q - Q[i, a]) * inv_scale_q[a]
+                        dp_abs = abs(new_p - P[i, a]) * inv_scale_p[a]
                         if dq_abs > change_q:
                             change_q = dq_abs
                         if not dp_abs <= change_p:  # also catches NaN
@@ -199,7 +195,7 @@ def varying_mass_loop(
                     Q[i, a] = new_q
                     P[i, a] = new_p
             if its > 0:
-                change = max(change_q * inv_scale_q, change_p * inv_scale_p)
+                change = max(change_q, change_p)
                 if not moved:
                     status = STATUS_OK
                     break
@@ -209,8 +205,12 @@ def varying_mass_loop(
                 if its >= 2 and change >= previous and change < ROUNDOFF_CHANGE:
                     status = STATUS_OK
                     break
-                if its >= maxiter or too_slow(
-                    change, previous, its, FIXED_POINT_CONTRACTION, maxiter, tol
+                if its >= maxiter:
+                    break
+                # an infinite contraction turns the slow-sweep test off: the sweeps of a
+                # close encounter may stall or grow for one sweep and converge after it
+                if contraction < np.inf and too_slow(
+                    change, previous, its, contraction, maxiter, tol
                 ):
                     break
                 previous = change
@@ -300,7 +300,7 @@ def varying_mass_loop(
         if status == STATUS_OK:
             # the first step starts from constant stages and takes more sweeps: not counted
             mean_sweeps = its if k <= 1 else SWEEP_MEMORY * mean_sweeps + (1 - SWEEP_MEMORY) * its
-            if k >= 1 and mean_sweeps > SWEEP_ALLOWANCE + r:
+            if k >= 1 and mean_sweeps > allowance + r:
                 # this step is good, but the steps cost more than Newton's would: hand
                 # over before it (the caller resumes from the state at step k)
                 status = STATUS_NEWTON_FAILED

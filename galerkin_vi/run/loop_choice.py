@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 from ..method.composition import Composition
 from ..method.galerkin import Galerkin
@@ -10,7 +12,69 @@ from ..method.stage_form import has_stage_form
 from ..method.velocity_stages import MIN_FIXED_POINT_DEGREE, has_velocity_stages
 from ..model.system import LagrangianSystem
 
-__all__ = ["composition_obstacle", "loop_path"]
+__all__ = [
+    "EARLY_HAND_OVER",
+    "PERSISTENT",
+    "HandOver",
+    "composition_obstacle",
+    "hand_over",
+    "loop_path",
+]
+
+
+@dataclass(frozen=True)
+class HandOver:
+    r"""When the varying-mass loop gives a run up to Newton (run-time data of the loop).
+
+    Attributes
+    ----------
+    contraction : float
+        Hand over when a sweep's change is more than this times the one before,
+        or (infinite) never for slow sweeps,
+        :math:`\theta = |\delta_k| / |\delta_{k-1}| > \theta_{\max}` (or, at the measured
+        :math:`\theta`, the iteration would need more than ``maxiter`` sweeps:
+        :func:`galerkin_vi.loops.stage_form.too_slow`).
+    allowance : float
+        Hand over when the sweeps per step, a running mean over the steps after
+        the first, exceed this plus the number of stages.
+    """
+
+    contraction: float
+    allowance: float
+
+    @property
+    def loop_arguments(self) -> tuple[float, float]:
+        """``(contraction, allowance)`` in the loop's argument order."""
+        return (self.contraction, self.allowance)
+
+
+#: ``fixed_point=True``: at 0.3 a digit costs two sweeps, about one Newton iteration of a
+#: small system; 7 sweeps above the stages is about where the fixed point stops beating
+#: Newton on the double pendulum (smaller allowances hand over runs it is winning,
+#: larger ones hand over late; docs/performance.md)
+EARLY_HAND_OVER = HandOver(contraction=0.3, allowance=7.0)
+#: ``fixed_point="persistent"``: only an iteration that reaches ``maxiter`` sweeps or
+#: overflows hands over, as in the hand-written kernels. On the Poincaré-transformed
+#: systems of :class:`galerkin_vi.AdaptiveIntegrator` a sweep near a close encounter may
+#: stall or grow by a few percent before the iteration converges, and the early rule (or
+#: a prediction from that sweep's contraction) handed the rest of each chunk to Newton at
+#: about twice the cost per step (docs/performance.md, "Adaptive steps that behave")
+PERSISTENT = HandOver(contraction=math.inf, allowance=math.inf)
+
+
+def hand_over(fixed_point: bool | str) -> HandOver:
+    """The :class:`HandOver` rule of ``Integrator(fixed_point=...)``.
+
+    Raises
+    ------
+    ValueError
+        If ``fixed_point`` is not True, False or ``"persistent"``.
+    """
+    if isinstance(fixed_point, str) and fixed_point == "persistent":
+        return PERSISTENT
+    if isinstance(fixed_point, bool):
+        return EARLY_HAND_OVER
+    raise ValueError(f"fixed_point must be True, False or 'persistent', got {fixed_point!r}")
 
 
 def composition_obstacle(system: LagrangianSystem) -> str | None:
@@ -39,7 +103,7 @@ def loop_path(
     method: Galerkin | Composition,
     backend: str,
     specialize: bool,
-    fixed_point: bool,
+    fixed_point: bool | str,
     banded: Callable[[], bool],
 ) -> str:
     r"""Which time loop runs: constrained, explicit, linear, separable, varying_mass or newton.

@@ -29,6 +29,7 @@ from ..method.stage_form import separable_tables
 from ..method.velocity_stages import varying_mass_tables
 from ..model.system import LagrangianSystem
 from .constrained_band import constrained_band
+from .loop_choice import EARLY_HAND_OVER, HandOver
 
 __all__ = [
     "LOOP_PATHS",
@@ -91,6 +92,8 @@ class RunSpec:
     band : tuple or None
         The constrained loop's band order (:mod:`galerkin_vi.run.constrained_band`),
         or None: dense linear algebra.
+    hand_over : HandOver
+        When the varying-mass loop gives the run up to Newton.
     """
 
     system: LagrangianSystem
@@ -106,6 +109,7 @@ class RunSpec:
     constant_mass: bool
     legendre: Any
     band: tuple | None = None
+    hand_over: HandOver = EARLY_HAND_OVER
 
     @property
     def order(self) -> int:
@@ -135,7 +139,8 @@ class RunSpec:
             return loops.stage_form_loop, (*self.model, diagonal), after
         if path == "varying_mass":
             stages = varying_mass_tables(self.method)
-            return loops.varying_mass_loop, self.model, (*stages.loop_arguments, *newton)
+            after = (*stages.loop_arguments, *newton, *self.hand_over.loop_arguments)
+            return loops.varying_mass_loop, self.model, after
         method = (tb.b, tb.c, tb.d, tb.Phi, tb.D, tb.extrapolation)
         if path == "linear":
             return loops.linear_loop, self.model, method
@@ -230,11 +235,20 @@ def reference_run_spec(system, method, path: str, tol: float, maxiter: int) -> R
 
 
 def compiled_run_spec(
-    system, method, path: str, tol: float, maxiter: int, summary, points, constant_mass: bool
+    system,
+    method,
+    path: str,
+    tol: float,
+    maxiter: int,
+    summary,
+    points,
+    constant_mass: bool,
+    hand_over: HandOver = EARLY_HAND_OVER,
 ) -> RunSpec:
     """The :class:`RunSpec` of the compiled loops: ``summary`` is the system's
     :class:`~galerkin_vi.codegen.SpecSummary`, ``points`` its compiled point functions
-    (loaded or compiled here, those the loop of ``path`` reads)."""
+    (loaded or compiled here, those the loop of ``path`` reads), ``hand_over`` the
+    varying-mass loop's rule (:func:`galerkin_vi.run.loop_choice.hand_over`)."""
     names = point_function_names(path, summary.m)
     fn = tuple(int(address) for address in points.addresses(names))
     model = (fn, loop_traits(summary), banded_pattern(summary), periodic_mask(system))
@@ -245,5 +259,5 @@ def compiled_run_spec(
         system, method, path, "numba", tol, maxiter, model=model,
         diagonal_mass=bool(summary.diagonal_mass), autonomous=bool(summary.autonomous),
         couplings=couplings if any(couplings) else None, constant_mass=constant_mass,
-        legendre=legendre, band=band,
+        legendre=legendre, band=band, hand_over=hand_over,
     )  # fmt: skip
