@@ -17,11 +17,7 @@ from .model.system import LagrangianSystem
 from .reference import resolve_backend
 from .run.del_step import del_step
 from .run.ensemble import integrate_many
-<<<<<<< HEAD
-from .run.loop_choice import composition_obstacle, loop_path
-=======
-from .run.loop_choice import hand_over, loop_path
->>>>>>> adaptive2
+from .run.loop_choice import composition_obstacle, hand_over, loop_path
 from .run.smooth import integrate_smooth
 from .run.spec import RunSpec, compiled_run_spec, loop_traits, reference_run_spec
 from .run.stream import check_stream_arguments, stream_chunks
