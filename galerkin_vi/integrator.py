@@ -219,15 +219,16 @@ class Integrator:
 
     @cached_property
     def tangent_run_spec(self) -> RunSpec:
-        """The run spec of the general Newton loop, which carries the tangent map."""
+        """The run spec of the loop that carries the tangent map: the explicit loop's (with
+        the point Hessian) for a :class:`~galerkin_vi.Composition`, the general Newton
+        loop's (or the constrained loop's) for a Galerkin method."""
         if self.backend != "numba":
             raise ValueError("tangent and sensitivity need the numba backend (compiled loops)")
         if isinstance(self.method, Composition):
-            raise ValueError(
-                f"tangent and sensitivity: {self.method!r} has no stage equations whose "
-                "Jacobian carries the tangent map; use a Galerkin method (Galerkin(1) is "
-                "Stormer-Verlet)"
-            )
+            return compiled_run_spec(
+                self.system, self.method, "explicit", self.tol, self.maxiter, self._summary,
+                self._points, constant_mass=self.uses_constant_mass, hessian=True,
+            )  # fmt: skip
         if self.system.m:
             return constrained_tangent_spec(self.run_spec)
         return compiled_run_spec(

@@ -1,0 +1,273 @@
+r"""The explicit loop with its tangent map: variations along compositions of Störmer–Verlet.
+
+The states are those of :func:`.explicit.explicit_loop` bit for bit (the same
+operations in the same order, the same first-same-as-last forces). A sub-step
+of length :math:`\eta = \gamma_i h` from :math:`(\tau_{i-1}, q, p)` to
+:math:`(\tau_i, q', p')`,
+
+.. math::
+
+    \bar p = p + \tfrac\eta2 L_q(\tau_{i-1}, q),\quad
+    q' = q + \eta M^{-1}(\bar p - \bar a),\quad
+    p' = \bar p + \tfrac\eta2 L_q(\tau_i, q'),
+
+with :math:`\bar a = \tfrac12(a(\tau_{i-1}) + a(\tau_i))`, is differentiated
+exactly: a variation :math:`(\delta q, \delta p, \delta\theta)` goes to
+
+.. math::
+
+    \delta\bar p = \delta p + \tfrac\eta2 \big(H\,\delta q + L_{q\theta}\,\delta\theta\big),\quad
+    \delta q' = \delta q + \eta M^{-1}\big(\delta\bar p - \bar a_\theta\,\delta\theta\big),\quad
+    \delta p' = \delta\bar p + \tfrac\eta2 \big(H'\delta q' + L'_{q\theta}\,\delta\theta\big),
+
+with :math:`H = L_{qq} + f_q` at the sub-step's start, :math:`H'` at its end
+(each point's Hessian serves the two sub-steps that meet there) and
+:math:`a_\theta = \partial L_v(t, q, 0)/\partial\theta`. The mass matrix is
+constant and does not depend on the parameters differentiated (the run
+pipeline refuses those). Each sub-step is a symplectic map, so the tangent
+:math:`\Phi_k` satisfies :math:`\Phi_k^T J \Phi_k = J` to round-off. The frame
+``T`` (directions of :math:`(q_0, p_0)`) and the sensitivities ``S``
+(:math:`\partial x/\partial\theta`) are advanced in place; renormalisation and
+MEGNO as in :func:`.tangent.tangent_loop` (Benettin et al. 1980; Cincotta &
+Simó 2000).
+"""
+
+# ruff: noqa: N803, N806
+from __future__ import annotations
+
+import numpy as np
+
+from ._jit import driver, kernel
+from .common import STATUS_NONFINITE, STATUS_OK, save_row, wrap_angles
+from .linalg import block_size
+from .point import point_gradient, point_hessian
+from .tangent import (
+    advance_chaos,
+    finish_chaos,
+    point_product,
+    save_variations,
+    start_chaos,
+)
+
+__all__ = ["explicit_tangent_loop"]
+
+
+@kernel
+def vary_column(X, j, theta, eta, Minv, H0, H1, TQ0, TQ1, TV0, TV1, pattern, work):
+    r"""Column ``j`` of X (2n rows: :math:`\delta q`, :math:`\delta p`) through one sub-step.
+
+    ``theta`` is the parameter index of a sensitivity column (its inhomogeneous
+    terms :math:`L_{q\theta}`, :math:`\bar a_\theta` added), -1 for a direction.
+    ``work`` (4, n) is scratch: :math:`\delta q`, :math:`\delta p`, products, :math:`\delta\bar p`.
+    """
+    n = Minv.shape[0]
+    dq = work[0]
+    dp = work[1]
+    g = work[2]
+    half = work[3]
+    P = TQ0.shape[0] // n if n > 0 else 0
+    for a in range(n):
+        dq[a] = X[a, j]
+        dp[a] = X[n + a, j]
+        g[a] = 0.0
+    point_product(H0, dq, g, 1.0, pattern, n)
+    for a in range(n):
+        force = g[a]
+        if theta >= 0:
+            force += TQ0[a * P + theta]
+        half[a] = dp[a] + 0.5 * eta * force
+        # the drift's right-hand side, kept in dp (no longer needed)
+        dp[a] = half[a]
+        if theta >= 0:
+            dp[a] -= 0.5 * (TV0[a * P + theta] + TV1[a * P + theta])
+    for a in range(n):
+        acc = 0.0
+        for b in range(n):
+            acc += Minv[a, b] * dp[b]
+        dq[a] += eta * acc
+        g[a] = 0.0
+    point_product(H1, dq, g, 1.0, pattern, n)
+    for a in range(n):
+        force = g[a]
+        if theta >= 0:
+            force += TQ1[a * P + theta]
+        X[a, j] = dq[a]
+        X[n + a, j] = half[a] + 0.5 * eta * force
+
+
+@kernel
+def vary_substep(T, S, eta, Minv, H0, H1, TQ0, TQ1, TV0, TV1, pattern, work):
+    """Every direction of the frame T and every sensitivity column of S through a sub-step."""
+    for j in range(T.shape[1]):
+        vary_column(T, j, -1, eta, Minv, H0, H1, TQ0, TQ1, TV0, TV1, pattern, work)
+    for j in range(S.shape[1]):
+        vary_column(S, j, j, eta, Minv, H0, H1, TQ0, TQ1, TV0, TV1, pattern, work)
+
+
+@kernel
+def second_derivatives(fn, fnp, t, q, zero, prm, H, TQ, TV, scratch, n_theta):
+    r""":math:`L_{qq} + f_q` into H and, with parameters, :math:`L_{q\theta}`,
+    :math:`L_{v\theta}` (at v = 0: :math:`a_\theta`) into TQ, TV at (t, q)."""
+    point_hessian(fn, t, q, zero, prm, scratch[0], scratch[1], H, scratch[2], scratch[3],
+                  scratch[4])  # fmt: skip
+    if n_theta > 0:
+        point_gradient(fnp, t, q, zero, prm, TQ, TV)
+
+
+@driver
+def explicit_tangent_loop(
+    fn,
+    fnp,
+    pattern,
+    periodic,
+    time_dependent,
+    q0,
+    p0,
+    t0,
+    h,
+    n_steps,
+    save_every,
+    prm,
+    Minv,
+    gamma,
+    nodes,
+    T,
+    S,
+    renormalize_every,
+    t_origin,
+    megno,
+    t_out,
+    q_out,
+    p_out,
+    turns_out,
+    T_out,
+    S_out,
+    growth_out,
+    megno_out,
+):
+    r"""Run ``n_steps`` steps of the composition ``gamma`` of Störmer–Verlet with its tangent map.
+
+    ``fn`` the point functions' addresses (slots gradient and Hessian), ``fnp``
+    the parameter derivatives' (slot gradient, flat ``a P + j``; unread without
+    sensitivities), ``pattern`` the Hessians' banded storage or None,
+    ``periodic`` the angles' mask or None, ``time_dependent`` a bool; the
+    segment arguments of :func:`.explicit.explicit_loop`, ``Minv`` the dense
+    :math:`M^{-1}`, ``gamma`` and ``nodes`` the sub-steps; ``T`` (2n, r), ``S``
+    (2n, P), ``renormalize_every``, ``t_origin``, ``megno`` and the outputs
+    ``T_out``, ``S_out``, ``growth_out``, ``megno_out`` as in
+    :func:`.tangent.tangent_loop`. Returns the 5-tuple of :mod:`.abi`.
+    """
+    n = q0.shape[0]
+    m = gamma.shape[0]
+    n_dir = T.shape[1]
+    n_theta = S.shape[1]
+    nnz = block_size(n, pattern)
+    qk = q0.copy()
+    q_lost = np.zeros(n)
+    turns = np.zeros(n)
+    if periodic is not None:
+        wrap_angles(qk, q_lost, turns, periodic)
+    pk = p0.copy()
+    zero = np.zeros(n)
+    lq = np.zeros(n)
+    lq_next = np.zeros(n)
+    a0 = np.zeros(n)
+    a1 = np.zeros(n)
+    rhs = np.zeros(n)
+    H0 = np.zeros(nnz)
+    H1 = np.zeros(nnz)
+    scratch = np.zeros((5, max(n, nnz)))
+    TQ0 = np.zeros(n * n_theta)
+    TQ1 = np.zeros(n * n_theta)
+    TV0 = np.zeros(n * n_theta)
+    TV1 = np.zeros(n * n_theta)
+    work = np.zeros((4, n))
+    q_before = np.zeros(n)
+    p_before = np.zeros(n)
+    lost_before = np.zeros(n)
+    turns_before = np.zeros(n)
+    T_before = np.zeros(T.shape)
+    S_before = np.zeros(S.shape)
+    chaos = renormalize_every > 0
+    growth, sums = start_chaos(T, megno, t0, t_origin, h, chaos)
+    saved = save_row(0, t0, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic)
+    save_variations(0, T, S, growth, sums, T_out, S_out, growth_out, megno_out)
+    point_gradient(fn, t0, qk, zero, prm, lq, a0)
+    point_gradient(fn, t0, qk, zero, prm, lq_next, a1)
+    second_derivatives(fn, fnp, t0, qk, zero, prm, H0, TQ0, TV0, scratch, n_theta)
+    for k in range(n_steps):
+        tk = t0 + k * h
+        tk1 = t0 + (k + 1) * h
+        finite = True
+        T_before[:, :] = T
+        S_before[:, :] = S
+        for i in range(m):
+            eta = gamma[i] * h
+            tau = t0 + (k + nodes[i]) * h
+            if time_dependent:
+                point_gradient(fn, tau, qk, zero, prm, lq_next, a1)
+            if i == 0:
+                for a in range(n):
+                    q_before[a] = qk[a]
+                    p_before[a] = pk[a]
+                    lost_before[a] = q_lost[a]
+                    turns_before[a] = turns[a]
+            for a in range(n):
+                rhs[a] = pk[a] + 0.5 * eta * lq[a] - 0.5 * (a0[a] + a1[a])
+            for a in range(n):
+                acc = 0.0
+                for b in range(n):
+                    acc += Minv[a, b] * rhs[b]
+                if periodic is None:
+                    qk[a] += eta * acc
+                else:
+                    y = eta * acc - q_lost[a]
+                    total = qk[a] + y
+                    q_lost[a] = (total - qk[a]) - y
+                    qk[a] = total
+            if periodic is not None and i == m - 1:
+                wrap_angles(qk, q_lost, turns, periodic)
+            point_gradient(fn, tau, qk, zero, prm, lq_next, a1)
+            # the derivatives at the sub-step's end: a translation by whole turns leaves
+            # them unchanged, so they are taken where the state is kept
+            second_derivatives(fn, fnp, tau, qk, zero, prm, H1, TQ1, TV1, scratch, n_theta)
+            vary_substep(T, S, eta, Minv, H0, H1, TQ0, TQ1, TV0, TV1, pattern, work)
+            for a in range(n):
+                pk[a] += 0.5 * eta * (lq[a] + lq_next[a])
+                lq[a] = lq_next[a]
+                if time_dependent:
+                    a0[a] = a1[a]
+                if not abs(pk[a]) < 1e300 or not abs(qk[a]) < 1e300:
+                    finite = False
+            H0, H1 = H1, H0
+            TQ0, TQ1 = TQ1, TQ0
+            TV0, TV1 = TV1, TV0
+        for a in range(2 * n):
+            for j in range(n_dir):
+                if not abs(T[a, j]) < 1e300:
+                    finite = False
+            for j in range(n_theta):
+                if not abs(S[a, j]) < 1e300:
+                    finite = False
+        if finite and chaos:
+            due = (k + 1) % renormalize_every == 0
+            finite = advance_chaos(T, growth, sums, tk1 - t_origin, h, due)
+        if not finite:
+            if k % save_every != 0:
+                row = saved
+                saved = save_row(
+                    saved, tk, q_before, lost_before, turns_before, p_before, t_out, q_out,
+                    p_out, turns_out, periodic,
+                )  # fmt: skip
+                save_variations(
+                    row, T_before, S_before, growth, sums, T_out, S_out, growth_out, megno_out
+                )
+            return STATUS_NONFINITE, k, saved, 0.0, np.nan
+        if (k + 1) % save_every == 0 or k + 1 == n_steps:
+            row = saved
+            saved = save_row(
+                saved, tk1, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic
+            )
+            save_variations(row, T, S, growth, sums, T_out, S_out, growth_out, megno_out)
+    finish_chaos(megno, sums, n_dir)
+    return STATUS_OK, n_steps, saved, 0.0, np.nan
