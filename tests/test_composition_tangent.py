@@ -12,7 +12,8 @@ import pytest
 import sympy as sp
 
 import galerkin_vi as gvi
-from galerkin_vi.problems.mechanics import henon_heiles
+from galerkin_vi.problems.chains import spring_chain
+from galerkin_vi.problems.mechanics import henon_heiles, pendulum
 from galerkin_vi.run.composed_del import composition_map
 
 t, q, v, x, y, vx, vy = sp.symbols("t q v x y vx vy")
@@ -70,6 +71,28 @@ def test_tangent_is_symplectic_after_100_steps(order, scheme):
     phi = traj.tangent[-1]
     assert np.abs(phi - np.eye(4)).max() > 1  # far from the identity: the test has teeth
     assert np.abs(phi.T @ J4 @ phi - J4).max() < 1e-12 * max(1.0, np.abs(phi).max() ** 2)
+
+
+@pytest.mark.parametrize("problem", [pendulum(q0=3.0, v0=1.5), spring_chain(8, beta=1.0)],
+                         ids=["angles", "banded"])  # fmt: skip
+def test_tangent_across_whole_turns_and_with_banded_hessians_matches_differences(problem):
+    integrator = gvi.Integrator(problem.system, gvi.Composition(6))
+    q0, v0 = np.asarray(problem.q0, float), np.asarray(problem.v0, float)
+    n = q0.shape[0]
+    run = dict(h=0.1, n_steps=60, params=problem.params)
+    traj = integrator.integrate(q0, v0, tangent=True, **run)
+    if n == 1:
+        assert traj.q[-1, 0] > 2 * np.pi  # the angle went over the top: the turns are kept
+
+    def end(z):
+        other = integrator.integrate(z[:n], p0=z[n:], **run)
+        return np.r_[other.q[-1], other.p[-1]]
+
+    z0, eps = np.r_[traj.q[0], traj.p[0]], 1e-6
+    expected = np.column_stack(
+        [(end(z0 + eps * e) - end(z0 - eps * e)) / (2 * eps) for e in np.eye(2 * n)]
+    )
+    assert np.abs(traj.tangent[-1] - expected).max() <= 1e-7 * np.abs(expected).max()
 
 
 def test_one_step_equals_the_independent_numpy_tangent_of_the_composition():
