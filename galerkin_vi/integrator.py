@@ -355,14 +355,17 @@ class Integrator:
             (``True``) or its action on r directions V: ``Trajectory.tangent``,
             shape (rows, 2n, r). Implicit function theorem on each step's stage
             equations with their exact Jacobian at the solution
-            (:mod:`galerkin_vi.loops.tangent`): one solve per direction and step.
+            (:mod:`galerkin_vi.loops.tangent`): one solve per direction and step;
+            a :class:`~galerkin_vi.Composition` differentiates its explicit sub-steps
+            exactly (:mod:`galerkin_vi.loops.explicit_tangent`: the states bit for bit
+            those of the run without it).
             The row of a terminal event holds the derivative at the event time
             held fixed. With ``v0`` the start's momentum is :math:`L_v(q_0, v_0)`:
             the tangent is still with respect to :math:`(q_0, p_0)`, the
             sensitivity at fixed :math:`v_0`.
         sensitivity : sequence of parameter symbols or names, optional
             Carry :math:`\\partial(q_k, p_k)/\\partial\\theta`: ``Trajectory.sensitivity``,
-            shape (rows, 2n, P).
+            shape (rows, 2n, P). A Composition refuses parameters of the mass matrix.
         renormalize_every : int
             With ``tangent``: orthonormalise the frame every so many steps
             (Benettin's method) and keep the log-growths and MEGNO
