@@ -37,81 +37,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import driver, kernel
+from ._jit import driver
 from .common import STATUS_NONFINITE, STATUS_OK, save_row, wrap_angles
 from .linalg import block_size
 from .point import point_gradient, point_hessian
-from .tangent import (
-    advance_chaos,
-    finish_chaos,
-    point_product,
-    save_variations,
-    start_chaos,
-)
+from .tangent import advance_chaos, finish_chaos, save_variations, start_chaos
 
 __all__ = ["explicit_tangent_loop"]
-
-
-@kernel
-def vary_column(X, j, theta, eta, Minv, H0, H1, TQ0, TQ1, TV0, TV1, pattern, work):
-    r"""Column ``j`` of X (2n rows: :math:`\delta q`, :math:`\delta p`) through one sub-step.
-
-    ``theta`` is the parameter index of a sensitivity column (its inhomogeneous
-    terms :math:`L_{q\theta}`, :math:`\bar a_\theta` added), -1 for a direction.
-    ``work`` (4, n) is scratch: :math:`\delta q`, :math:`\delta p`, products, :math:`\delta\bar p`.
-    """
-    n = Minv.shape[0]
-    dq = work[0]
-    dp = work[1]
-    g = work[2]
-    half = work[3]
-    P = TQ0.shape[0] // n if n > 0 else 0
-    for a in range(n):
-        dq[a] = X[a, j]
-        dp[a] = X[n + a, j]
-        g[a] = 0.0
-    point_product(H0, dq, g, 1.0, pattern, n)
-    for a in range(n):
-        force = g[a]
-        if theta >= 0:
-            force += TQ0[a * P + theta]
-        half[a] = dp[a] + 0.5 * eta * force
-        # the drift's right-hand side, kept in dp (no longer needed)
-        dp[a] = half[a]
-        if theta >= 0:
-            dp[a] -= 0.5 * (TV0[a * P + theta] + TV1[a * P + theta])
-    for a in range(n):
-        acc = 0.0
-        for b in range(n):
-            acc += Minv[a, b] * dp[b]
-        dq[a] += eta * acc
-        g[a] = 0.0
-    point_product(H1, dq, g, 1.0, pattern, n)
-    for a in range(n):
-        force = g[a]
-        if theta >= 0:
-            force += TQ1[a * P + theta]
-        X[a, j] = dq[a]
-        X[n + a, j] = half[a] + 0.5 * eta * force
-
-
-@kernel
-def vary_substep(T, S, eta, Minv, H0, H1, TQ0, TQ1, TV0, TV1, pattern, work):
-    """Every direction of the frame T and every sensitivity column of S through a sub-step."""
-    for j in range(T.shape[1]):
-        vary_column(T, j, -1, eta, Minv, H0, H1, TQ0, TQ1, TV0, TV1, pattern, work)
-    for j in range(S.shape[1]):
-        vary_column(S, j, j, eta, Minv, H0, H1, TQ0, TQ1, TV0, TV1, pattern, work)
-
-
-@kernel
-def second_derivatives(fn, fnp, t, q, zero, prm, H, TQ, TV, scratch, n_theta):
-    r""":math:`L_{qq} + f_q` into H and, with parameters, :math:`L_{q\theta}`,
-    :math:`L_{v\theta}` (at v = 0: :math:`a_\theta`) into TQ, TV at (t, q)."""
-    point_hessian(fn, t, q, zero, prm, scratch[0], scratch[1], H, scratch[2], scratch[3],
-                  scratch[4])  # fmt: skip
-    if n_theta > 0:
-        point_gradient(fnp, t, q, zero, prm, TQ, TV)
 
 
 @driver
@@ -176,12 +108,19 @@ def explicit_tangent_loop(
     rhs = np.zeros(n)
     H0 = np.zeros(nnz)
     H1 = np.zeros(nnz)
-    scratch = np.zeros((5, max(n, nnz)))
+    lqh = np.zeros(n)
+    lvh = np.zeros(n)
+    hqv = np.zeros(nnz)
+    hvv = np.zeros(nnz)
+    hfv = np.zeros(nnz)
     TQ0 = np.zeros(n * n_theta)
     TQ1 = np.zeros(n * n_theta)
     TV0 = np.zeros(n * n_theta)
     TV1 = np.zeros(n * n_theta)
-    work = np.zeros((4, n))
+    dq = np.zeros(n)
+    dp = np.zeros(n)
+    g = np.zeros(n)
+    half = np.zeros(n)
     q_before = np.zeros(n)
     p_before = np.zeros(n)
     lost_before = np.zeros(n)
@@ -194,7 +133,9 @@ def explicit_tangent_loop(
     save_variations(0, T, S, growth, sums, T_out, S_out, growth_out, megno_out)
     point_gradient(fn, t0, qk, zero, prm, lq, a0)
     point_gradient(fn, t0, qk, zero, prm, lq_next, a1)
-    second_derivatives(fn, fnp, t0, qk, zero, prm, H0, TQ0, TV0, scratch, n_theta)
+    point_hessian(fn, t0, qk, zero, prm, lqh, lvh, H0, hqv, hvv, hfv)
+    if n_theta > 0:
+        point_gradient(fnp, t0, qk, zero, prm, TQ0, TV0)
     for k in range(n_steps):
         tk = t0 + k * h
         tk1 = t0 + (k + 1) * h
@@ -230,8 +171,65 @@ def explicit_tangent_loop(
             point_gradient(fn, tau, qk, zero, prm, lq_next, a1)
             # the derivatives at the sub-step's end: a translation by whole turns leaves
             # them unchanged, so they are taken where the state is kept
-            second_derivatives(fn, fnp, tau, qk, zero, prm, H1, TQ1, TV1, scratch, n_theta)
-            vary_substep(T, S, eta, Minv, H0, H1, TQ0, TQ1, TV0, TV1, pattern, work)
+            point_hessian(fn, tau, qk, zero, prm, lqh, lvh, H1, hqv, hvv, hfv)
+            if n_theta > 0:
+                point_gradient(fnp, tau, qk, zero, prm, TQ1, TV1)
+            # every column of the frame T, then of the sensitivities S (theta >= 0: the
+            # parameter's inhomogeneous terms), through the sub-step; written out here:
+            # an inlined helper costs an atomic reference count pair per array argument
+            # and call, four times the arithmetic of a small system's sub-step
+            for j in range(n_dir + n_theta):
+                theta = j - n_dir
+                for a in range(n):
+                    if theta < 0:
+                        dq[a] = T[a, j]
+                        dp[a] = T[n + a, j]
+                    else:
+                        dq[a] = S[a, theta]
+                        dp[a] = S[n + a, theta]
+                    g[a] = 0.0
+                if pattern is None:
+                    for a in range(n):
+                        acc = 0.0
+                        for b in range(n):
+                            acc += H0[a * n + b] * dq[b]
+                        g[a] = acc
+                else:
+                    for e in range(pattern.shape[0]):
+                        g[pattern[e, 0]] += H0[e] * dq[pattern[e, 1]]
+                for a in range(n):
+                    force = g[a]
+                    if theta >= 0:
+                        force += TQ0[a * n_theta + theta]
+                    half[a] = dp[a] + 0.5 * eta * force
+                    dp[a] = half[a]  # the drift's right-hand side from here on
+                    if theta >= 0:
+                        dp[a] -= 0.5 * (TV0[a * n_theta + theta] + TV1[a * n_theta + theta])
+                for a in range(n):
+                    acc = 0.0
+                    for b in range(n):
+                        acc += Minv[a, b] * dp[b]
+                    dq[a] += eta * acc
+                    g[a] = 0.0
+                if pattern is None:
+                    for a in range(n):
+                        acc = 0.0
+                        for b in range(n):
+                            acc += H1[a * n + b] * dq[b]
+                        g[a] = acc
+                else:
+                    for e in range(pattern.shape[0]):
+                        g[pattern[e, 0]] += H1[e] * dq[pattern[e, 1]]
+                for a in range(n):
+                    force = g[a]
+                    if theta >= 0:
+                        force += TQ1[a * n_theta + theta]
+                    if theta < 0:
+                        T[a, j] = dq[a]
+                        T[n + a, j] = half[a] + 0.5 * eta * force
+                    else:
+                        S[a, theta] = dq[a]
+                        S[n + a, theta] = half[a] + 0.5 * eta * force
             for a in range(n):
                 pk[a] += 0.5 * eta * (lq[a] + lq_next[a])
                 lq[a] = lq_next[a]
