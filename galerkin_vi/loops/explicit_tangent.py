@@ -61,6 +61,7 @@ def explicit_tangent_loop(
     save_every,
     prm,
     Minv,
+    Minv_diagonal,
     gamma,
     nodes,
     T,
@@ -84,7 +85,9 @@ def explicit_tangent_loop(
     sensitivities), ``pattern`` the Hessians' banded storage or None,
     ``periodic`` the angles' mask or None, ``time_dependent`` a bool; the
     segment arguments of :func:`.explicit.explicit_loop`, ``Minv`` the dense
-    :math:`M^{-1}`, ``gamma`` and ``nodes`` the sub-steps; ``T`` (2n, r), ``S``
+    :math:`M^{-1}`, ``Minv_diagonal`` its diagonal when :math:`M` is diagonal (n
+    products per column, as the explicit loop's diagonal variant), else empty;
+    ``gamma`` and ``nodes`` the sub-steps; ``T`` (2n, r), ``S``
     (2n, P), ``renormalize_every``, ``t_origin``, ``megno`` and the outputs
     ``T_out``, ``S_out``, ``growth_out``, ``megno_out`` as in
     :func:`.tangent.tangent_loop`. Returns the 5-tuple of :mod:`.abi`.
@@ -94,6 +97,8 @@ def explicit_tangent_loop(
     n_dir = T.shape[1]
     n_theta = S.shape[1]
     nnz = block_size(n, pattern)
+    # a run-time switch: the variations' products dwarf its test
+    diagonal = Minv_diagonal.shape[0] > 0
     qk = q0.copy()
     q_lost = np.zeros(n)
     turns = np.zeros(n)
@@ -156,9 +161,12 @@ def explicit_tangent_loop(
             for a in range(n):
                 rhs[a] = pk[a] + 0.5 * eta * lq[a] - 0.5 * (a0[a] + a1[a])
             for a in range(n):
-                acc = 0.0
-                for b in range(n):
-                    acc += Minv[a, b] * rhs[b]
+                if diagonal:
+                    acc = Minv_diagonal[a] * rhs[a]
+                else:
+                    acc = 0.0
+                    for b in range(n):
+                        acc += Minv[a, b] * rhs[b]
                 if periodic is None:
                     qk[a] += eta * acc
                 else:
@@ -206,9 +214,12 @@ def explicit_tangent_loop(
                     if theta >= 0:
                         dp[a] -= 0.5 * (TV0[a * n_theta + theta] + TV1[a * n_theta + theta])
                 for a in range(n):
-                    acc = 0.0
-                    for b in range(n):
-                        acc += Minv[a, b] * dp[b]
+                    if diagonal:
+                        acc = Minv_diagonal[a] * dp[a]
+                    else:
+                        acc = 0.0
+                        for b in range(n):
+                            acc += Minv[a, b] * dp[b]
                     dq[a] += eta * acc
                     g[a] = 0.0
                 if pattern is None:

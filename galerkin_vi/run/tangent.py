@@ -245,11 +245,9 @@ def tangent_loop_parts(spec: RunSpec) -> tuple:
 def explicit_tangent_parts(spec: RunSpec, fnp, prm) -> tuple[tuple, tuple]:
     r"""``(before, after)`` of :func:`galerkin_vi.loops.explicit_tangent_loop` around the
     segment's arguments: the model (addresses, Hessian storage, angles, time switch) and
-    the method (dense :math:`M^{-1}`, the sub-steps).
-
-    A diagonal :math:`M` enters as the dense matrix of its inverse diagonal, whose
-    products the loop forms exactly as the explicit loop's diagonal ones (the added
-    zeros change no bit), so the states agree with a run without variations.
+    the method (:math:`M^{-1}`, its diagonal when :math:`M` is diagonal or an empty
+    array, the sub-steps): the products the explicit loop forms, so the states agree
+    with a run without variations bit for bit.
     """
     from .segment import substeps
 
@@ -257,11 +255,10 @@ def explicit_tangent_parts(spec: RunSpec, fnp, prm) -> tuple[tuple, tuple]:
     if inverse is None:
         raise DegenerateLagrangianError(f"the mass matrix d2L/dv2 = {mass} is singular")
     fn, _, pattern, periodic = spec.model
-    if spec.diagonal_mass:
-        inverse = np.diag(diagonal)
+    diagonal = diagonal if spec.diagonal_mass else np.zeros(0)
     periodic = periodic if periodic.any() else None
     before = (fn, fnp, pattern, periodic, not spec.autonomous)
-    return before, (np.ascontiguousarray(inverse), *substeps(spec.method))
+    return before, (np.ascontiguousarray(inverse), diagonal, *substeps(spec.method))
 
 
 def check_constant_mass_parameters(system, parameters: tuple) -> None:
