@@ -225,15 +225,16 @@ class Integrator:
 
     @cached_property
     def tangent_run_spec(self) -> RunSpec:
-        """The run spec of the general Newton loop, which carries the tangent map."""
+        """The run spec of the loop that carries the tangent map: the explicit loop's (with
+        the point Hessian) for a :class:`~galerkin_vi.Composition`, the general Newton
+        loop's (or the constrained loop's) for a Galerkin method."""
         if self.backend != "numba":
             raise ValueError("tangent and sensitivity need the numba backend (compiled loops)")
         if isinstance(self.method, Composition):
-            raise ValueError(
-                f"tangent and sensitivity: {self.method!r} has no stage equations whose "
-                "Jacobian carries the tangent map; use a Galerkin method (Galerkin(1) is "
-                "Stormer-Verlet)"
-            )
+            return compiled_run_spec(
+                self.system, self.method, "explicit", self.tol, self.maxiter, self._summary,
+                self._points, constant_mass=self.uses_constant_mass, hessian=True,
+            )  # fmt: skip
         if self.system.m:
             return constrained_tangent_spec(self.run_spec)
         return compiled_run_spec(
@@ -360,14 +361,17 @@ class Integrator:
             (``True``) or its action on r directions V: ``Trajectory.tangent``,
             shape (rows, 2n, r). Implicit function theorem on each step's stage
             equations with their exact Jacobian at the solution
-            (:mod:`galerkin_vi.loops.tangent`): one solve per direction and step.
+            (:mod:`galerkin_vi.loops.tangent`): one solve per direction and step;
+            a :class:`~galerkin_vi.Composition` differentiates its explicit sub-steps
+            exactly (:mod:`galerkin_vi.loops.explicit_tangent`: the states bit for bit
+            those of the run without it).
             The row of a terminal event holds the derivative at the event time
             held fixed. With ``v0`` the start's momentum is :math:`L_v(q_0, v_0)`:
             the tangent is still with respect to :math:`(q_0, p_0)`, the
             sensitivity at fixed :math:`v_0`.
         sensitivity : sequence of parameter symbols or names, optional
             Carry :math:`\\partial(q_k, p_k)/\\partial\\theta`: ``Trajectory.sensitivity``,
-            shape (rows, 2n, P).
+            shape (rows, 2n, P). A Composition refuses parameters of the mass matrix.
         renormalize_every : int
             With ``tangent``: orthonormalise the frame every so many steps
             (Benettin's method) and keep the log-growths and MEGNO

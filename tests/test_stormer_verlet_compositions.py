@@ -260,12 +260,6 @@ def test_step_del_with_time_dependence():
 
 
 # -------------------------------------------------------------------- bad input
-def test_tangent_and_sensitivity_are_refused_by_name(swing):
-    problem, integrator = swing
-    with pytest.raises(ValueError, match="tangent and sensitivity"):
-        integrator.integrate(problem.q0, problem.v0, h=0.1, n_steps=2, tangent=True)
-
-
 def test_structures_without_explicit_sub_steps_are_refused_by_name():
     q, v = sp.symbols("q v")
     varying = gvi.LagrangianSystem((1 + q**2) * v**2 / 2 - q**2 / 2, [q], [v])

@@ -3,7 +3,8 @@
 Each loop family is one module of plain numba code: :mod:`.general` (Newton on
 the stage equations, any regular Lagrangian, forces, time dependence, dense or
 banded Jacobians), :mod:`.linear` (quadratic Lagrangians: one factorisation
-per run), :mod:`.explicit` (Störmer–Verlet), :mod:`.stage_form` (separable
+per run), :mod:`.explicit` (Störmer–Verlet and its compositions; with the
+tangent map: :mod:`.explicit_tangent`), :mod:`.stage_form` (separable
 Lagrangians: Newton on the implicit stages only) and :mod:`.constrained`
 (holonomic constraints with momentum projection). Their shared pieces:
 :mod:`.common`, :mod:`.linalg`, :mod:`.point` (calls of the per-system point
@@ -24,6 +25,7 @@ from ._jit import cache_locators, compiling, discard_unreadable_loops, loop_cach
 from .constrained import constrained_loop
 from .constrained_tangent import constrained_tangent_loop
 from .explicit import explicit_loop
+from .explicit_tangent import explicit_tangent_loop
 from .general import general_loop
 from .linear import linear_loop
 from .stage_form import stage_form_loop
@@ -38,6 +40,7 @@ __all__ = [
     "constrained_tangent_loop",
     "discard_unreadable_loops",
     "explicit_loop",
+    "explicit_tangent_loop",
     "general_loop",
     "linear_loop",
     "loop_cache_dir",

@@ -210,7 +210,8 @@ def _members_with_variations(integrator, q, name, x, params, run, workers) -> En
     request = variation_request(
         system, run.get("tangent"), run.get("sensitivity"), run.get("renormalize_every", 0)
     )
-    if request is None:
+    if request is None or integrator.tangent_run_spec.path == "explicit":
+        # the explicit tangent loop has no member loop: each member is one integrate call
         return _one_by_one(integrator, q, name, x, params, run, workers)
     plan = run_plan(
         run.get("h"), run.get("n_steps"), run.get("t_span"), run.get("t0", 0.0),

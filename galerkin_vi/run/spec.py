@@ -152,10 +152,11 @@ class RunSpec:
         raise ValueError(f"the {path!r} loop is not called through loop_parts")
 
 
-def point_function_names(path: str, constraints: int) -> tuple[str, ...]:
-    """The compiled point functions a loop reads, in the order of its address slots."""
+def point_function_names(path: str, constraints: int, hessian: bool = False) -> tuple[str, ...]:
+    """The compiled point functions a loop reads, in the order of its address slots;
+    ``hessian``: the explicit path's with the Hessian too (its tangent map reads it)."""
     names = ("point_gradient",)
-    if path != "explicit":
+    if path != "explicit" or hessian:
         names += ("point_hessian",)
     if path == "varying_mass":
         names += ("point_mass",)
@@ -244,12 +245,14 @@ def compiled_run_spec(
     points,
     constant_mass: bool,
     hand_over: HandOver = EARLY_HAND_OVER,
+    hessian: bool = False,
 ) -> RunSpec:
     """The :class:`RunSpec` of the compiled loops: ``summary`` is the system's
     :class:`~galerkin_vi.codegen.SpecSummary`, ``points`` its compiled point functions
-    (loaded or compiled here, those the loop of ``path`` reads), ``hand_over`` the
-    varying-mass loop's rule (:func:`galerkin_vi.run.loop_choice.hand_over`)."""
-    names = point_function_names(path, summary.m)
+    (loaded or compiled here, those the loop of ``path`` reads; with ``hessian``, the
+    Hessian too, for the explicit path's tangent map), ``hand_over`` the varying-mass
+    loop's rule (:func:`galerkin_vi.run.loop_choice.hand_over`)."""
+    names = point_function_names(path, summary.m, hessian)
     fn = tuple(int(address) for address in points.addresses(names))
     model = (fn, loop_traits(summary), banded_pattern(summary), periodic_mask(system))
     legendre = point_legendre(system, path, summary, points)

@@ -27,6 +27,7 @@ import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 
+from ..errors import DegenerateLagrangianError
 from ..loops.abi import LoopResult
 from ..numeric import FlatEvaluator
 from .outputs import RunOutputs
@@ -241,6 +242,42 @@ def tangent_loop_parts(spec: RunSpec) -> tuple:
     return loops.tangent_loop, tangent_couplings(before), after
 
 
+def explicit_tangent_parts(spec: RunSpec, fnp, prm) -> tuple[tuple, tuple]:
+    r"""``(before, after)`` of :func:`galerkin_vi.loops.explicit_tangent_loop` around the
+    segment's arguments: the model (addresses, Hessian storage, angles, time switch) and
+    the method (:math:`M^{-1}`, its diagonal when :math:`M` is diagonal or an empty
+    array, the sub-steps): the products the explicit loop forms, so the states agree
+    with a run without variations bit for bit.
+    """
+    from .segment import substeps
+
+    mass, inverse, diagonal = spec.legendre.inverse_mass(prm)
+    if inverse is None:
+        raise DegenerateLagrangianError(f"the mass matrix d2L/dv2 = {mass} is singular")
+    fn, _, pattern, periodic = spec.model
+    diagonal = diagonal if spec.diagonal_mass else np.zeros(0)
+    periodic = periodic if periodic.any() else None
+    before = (fn, fnp, pattern, periodic, not spec.autonomous)
+    return before, (np.ascontiguousarray(inverse), diagonal, *substeps(spec.method))
+
+
+def check_constant_mass_parameters(system, parameters: tuple) -> None:
+    r"""Refuse sensitivities to parameters of the mass matrix on the explicit path.
+
+    There :math:`p = Mv + a(t)`; a parameter of :math:`M` would move the velocity
+    of the drift at fixed momentum (:math:`\partial M^{-1}/\partial\theta`), a term
+    the explicit tangent loop does not carry.
+    """
+    mass = sp.Matrix(system.pieces.Lv).jacobian(list(system.v))
+    inside = [p for p in parameters if mass.has(p)]
+    if inside:
+        raise ValueError(
+            f"sensitivity to {', '.join(map(str, inside))}: with a Composition the mass "
+            "matrix d2L/dv2 must not depend on the parameters differentiated (use a "
+            "Galerkin method for them)"
+        )
+
+
 def tangent_couplings(before: tuple) -> tuple:
     """The general loop's model part with its couplings as run-time flags always: the
     tangent loop's work per step dwarfs their tests, and one compiled variant fewer
@@ -280,6 +317,8 @@ class TangentRunner:
                     "constraints are not supported (their derivatives are not generated)"
                 )
         if request.parameters:
+            if spec.path == "explicit":
+                check_constant_mass_parameters(system, request.parameters)
             self.fnp = parameter_addresses(system, request.parameters)
 
     def __call__(self, segment: Segment) -> tuple[Trajectory, LoopResult]:
@@ -296,16 +335,29 @@ class TangentRunner:
         S_out = np.zeros((rows, n2, self.S.shape[1]))  # noqa: N806
         growth_out = np.zeros((chaos_rows, r))
         megno_out = np.zeros((chaos_rows, 2))
-        s1 = spec.method.tables.d.shape[0]
-        loop, before, after = tangent_loop_parts(spec)
-        result = LoopResult(
-            *loop(
-                *before, self.fnp, *segment.arguments, *after, self.T, self.S,
-                request.renormalize_every, self.t_origin, self.chaos,
-                np.zeros((0, s1, system.n)), *out.arrays, T_out, S_out, growth_out, megno_out,
-                out.iterations, out.iteration_total,
-            )
-        )  # fmt: skip
+        if spec.path == "explicit":
+            from ..loops import explicit_tangent_loop
+
+            s = segment
+            before, after = explicit_tangent_parts(spec, self.fnp, s.prm)
+            result = LoopResult(
+                *explicit_tangent_loop(
+                    *before, s.q0, s.p0, s.t0, s.h, s.n_steps, s.save_every, s.prm, *after,
+                    self.T, self.S, request.renormalize_every, self.t_origin, self.chaos,
+                    out.t, out.q, out.p, out.turns, T_out, S_out, growth_out, megno_out,
+                )
+            )  # fmt: skip
+        else:
+            s1 = spec.method.tables.d.shape[0]
+            loop, before, after = tangent_loop_parts(spec)
+            result = LoopResult(
+                *loop(
+                    *before, self.fnp, *segment.arguments, *after, self.T, self.S,
+                    request.renormalize_every, self.t_origin, self.chaos,
+                    np.zeros((0, s1, system.n)), *out.arrays, T_out, S_out, growth_out,
+                    megno_out, out.iterations, out.iteration_total,
+                )
+            )  # fmt: skip
         traj = out.trajectory(
             result.status, result.steps, result.saved, result.worst_residual,
             segment.save_every, system, segment.prm, spec.order,

@@ -30,6 +30,11 @@ Memory :math:`O(\sqrt N)` states and stages, cost one extra forward pass
 recorded steps agree with the forward pass's to round-off, not bit for bit
 (another loop solves the same stage equations).
 
+Systems with constraints or contacts, and compositions of Störmer–Verlet
+(:class:`~galerkin_vi.Composition`, whose sub-steps have no stage equations to
+transpose), take forward mode instead: the tangent map and the sensitivities
+carried along the run (:func:`_forward_mode`), ``Gradient.mode == "forward"``.
+
 With the initial velocity given, :math:`p_0 = L_v(t_0, q_0, v_0; \theta)`, and the
 gradients with respect to :math:`q_0`, :math:`v_0` and :math:`\theta` take its
 derivatives: :math:`\nabla_{v_0}\Lambda = L_{vv}\lambda_{p}`,
@@ -185,7 +190,10 @@ def gradient(
         lambda: LossTerms(system, loss, thetas),
     )
     q, p, v = initial_state(spec, q0, v0, p0, t0, prm, False)
-    n, s1 = system.n, spec.method.tables.d.shape[0]
+    # a composition's sub-steps have no stage equations to transpose: forward mode
+    forward = bool(system.m or system.contacts) or spec.path == "explicit"
+    n = system.n
+    s1 = 2 if spec.path == "explicit" else spec.method.tables.d.shape[0]
     whole = n_steps * (s1 * n + 2 * n + 1) * 8 <= RECORD_BYTES
     M = int(checkpoint_every or (n_steps if whole else 4 * (math.isqrt(n_steps - 1) + 1)))  # noqa: N806
     if M < 1:
@@ -195,7 +203,7 @@ def gradient(
             "gradient with contacts: running loss terms are not supported (a run with "
             "impacts has rows off the step grid); give a terminal loss"
         )
-    if system.m or system.contacts:
+    if forward:
         outcome = _forward_mode(
             integrator, terms, q, p, float(t0), float(h), n_steps, M, thetas, prm
         )

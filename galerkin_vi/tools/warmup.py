@@ -36,12 +36,14 @@ def _runs():
     loop (dense or banded), constrained loop, explicit loop (diagonal or full mass
     matrix) x (angles or none) x (autonomous or time-dependent), the varying-mass
     loop, the tangent loop and the discrete adjoint's reverse pass (dense or banded;
-    their couplings are run-time flags), the constrained tangent loop. Each implicit variant
+    their couplings are run-time flags), the constrained tangent loop, the explicit
+    tangent loop (angles or none, dense or banded Hessians). Each implicit variant
     is also run as a two-member ensemble (:mod:`galerkin_vi.loops.members`). The last
     run solves a boundary-value problem (:mod:`galerkin_vi.loops.action`).
     """
     import sympy as sp
 
+    from ..method.composition import Composition
     from ..method.galerkin import Galerkin
     from ..method.quadrature import gauss_legendre
     from ..model.system import LagrangianSystem
@@ -91,6 +93,7 @@ def _runs():
     timed_coupled = system(full_mass - (x**2 + y**2) / 2 + driven * x, [x, y], [vx, vy], t=t)
     one, two, chain0 = ([0.5], [0.1]), ([0.5, -0.2], [0.1, 0.0]), ([0.01] * n, [0.0] * n)
     g1, g2 = Galerkin(1), Galerkin(2)
+    composed = Composition(4, "yoshida")  # the explicit tangent loop (three sub-steps)
     return [
         ("stage form, diagonal M", pendulum, g2, True, *one),
         ("stage form, full M", coupled_angles, g2, True, *two),
@@ -116,6 +119,9 @@ def _runs():
         (f"{TANGENT}", gyroscopic, g2, True, *one),
         (f"{TANGENT}, banded", damped_chain, g2, True, *chain0),
         (f"{TANGENT}, constrained", rod, g2, True, [0.6, -0.8], [0.8, 0.6]),
+        (f"{TANGENT}, explicit", pendulum, composed, True, *one),
+        (f"{TANGENT}, explicit, no angles", coupled, composed, True, *two),
+        (f"{TANGENT}, explicit, banded", chain, composed, True, *chain0),
         (BOUNDARY_VALUE, pendulum, g2, True, *one),
     ]
 
@@ -148,6 +154,9 @@ RUN_SECONDS = (
     20.0,
     25.0,
     12.0,
+    8.0,
+    8.0,
+    8.0,
     31.0,
 )
 
