@@ -170,13 +170,14 @@ class Integrator:
         A system seen by an earlier process then derives no spec and hashes no
         expressions (for a 60-mass chain, 0.3 s of SymPy printing).
         """
-        from .codegen.compiled import numba_version, point_key
+        from .codegen.compiled import generator_fingerprint, numba_version, point_key
 
+        made_by = (numba_version(), generator_fingerprint())
         stored = self.system.recalled("point_summary")
-        if stored is not None and stored[0] == numba_version():
+        if stored is not None and stored[0] == made_by:
             return stored[1]
         summary = codegen.summarize(self._spec, point_key(self._spec))
-        self.system.remember("point_summary", (numba_version(), summary))
+        self.system.remember("point_summary", (made_by, summary))
         return summary
 
     @property

@@ -168,3 +168,14 @@ def test_default_g_composes_with_the_run_options_and_pickles(arenstorf):
     np.testing.assert_array_equal(again.integrate(Q0, V0, h=0.05, t_final=2.0).q[-1], dense.q[-1])
     with pytest.raises(ValueError, match="tangent"):
         adaptive.integrate(Q0, V0, h=0.05, n_steps=3, tangent=True)
+
+
+def test_the_default_g_warns_about_singular_terms_that_are_not_distances():
+    x, y, vx, vy = sp.symbols("x y vx vy")
+    # singular on the circle r = 1: no point distance; and a true distance to the origin
+    L = (vx**2 + vy**2) / 2 + 1 / (x**2 + y**2 - 1) ** 2 + 1 / sp.sqrt(x**2 + y**2)
+    system = gvi.LagrangianSystem(L, [x, y], [vx, vy])
+    with pytest.warns(RuntimeWarning, match="leaves out the singular terms"):
+        choice = default_step_function(system)
+    assert len(choice.distances) == 1
+    assert sp.simplify(choice.distances[0] ** 2 - (x**2 + y**2)) == 0

@@ -85,3 +85,45 @@ def test_a_cached_system_integrates_without_deriving_its_spec(monkeypatch):
     traj = gvi.Integrator(_model(), method).integrate([0.5], [0.1], h=0.05, n_steps=20)
     np.testing.assert_array_equal(traj.q, reference.q)
     np.testing.assert_array_equal(traj.p, reference.p)
+
+
+def test_the_sources_hash_covers_every_module_the_analysis_imports():
+    import ast
+    from pathlib import Path
+
+    model = Path(analysis_cache.__file__).resolve().parent
+    hashed = {(model / name).resolve() for name in analysis_cache._SOURCES}
+    for name in ("symbolic.py", "system.py"):
+        tree = ast.parse((model / name).read_text())
+        for node in ast.walk(tree):
+            if not (isinstance(node, ast.ImportFrom) and node.level == 1 and node.module):
+                continue
+            # the analysis's own helpers in model/ and the leaf walks it uses
+            path = (model / (node.module.replace(".", "/") + ".py")).resolve()
+            if node.module in ("terms", "symbolic", "system") or path.name == "expression_walk.py":
+                assert path in hashed, f"{name} imports {node.module}, not in _SOURCES"
+    assert (model.parent / "expression_walk.py").resolve() in hashed
+
+
+def test_a_remembered_point_summary_of_another_code_generator_is_not_reused(monkeypatch):
+    from galerkin_vi.codegen import compiled
+
+    method = gvi.Galerkin(2)
+    first = gvi.Integrator(_model(), method)
+    key = first._summary.key
+    compiled.generator_fingerprint.cache_clear()
+    monkeypatch.setattr(compiled, "GENERATOR_VERSION", "another")
+    try:
+        second = gvi.Integrator(_model(), method)
+        derived = []
+        original = codegen.summarize
+
+        def counting(spec, point_key):
+            derived.append(point_key)
+            return original(spec, point_key)
+
+        monkeypatch.setattr(codegen, "summarize", counting)
+        assert second._summary.key == key  # the spec's key itself is unchanged here
+        assert len(derived) == 1  # but the summary was derived again, not recalled
+    finally:
+        compiled.generator_fingerprint.cache_clear()

@@ -77,8 +77,10 @@ class AdaptiveIntegrator:
     physical step is proportional to the local orbital time
     :math:`\sqrt{r^3/(Gm)}` (Kepler's third law; Sundman's :math:`\alpha = 1`
     would spend :math:`r^{-1/2}` times more steps per revolution on close passages
-    than on distant ones). Every distance at which L is singular enters, so an
-    encounter the user did not foresee is resolved too. Without any such term,
+    than on distant ones). Every distance between points at which L is singular
+    enters (a squared distance that reaches 0 at a point, or a linear form; other singular
+    bases are left out with a warning), so an encounter the user did not foresee is
+    resolved too. Without any such term,
     :math:`g = 1`. :attr:`step_function` holds the choice and :meth:`describe`
     prints it.
 

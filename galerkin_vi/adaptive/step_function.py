@@ -21,18 +21,23 @@ collision of two bodies but gives a close passage
 :math:`r^{-1/2}` times more steps per local orbital time than a distant one;
 :math:`\alpha = 3/2` is the exponent at which the local error of a step of fixed
 fictitious size is the same at every distance of a Kepler orbit (Hairer, Lubich &
-Wanner, *Geometric Numerical Integration*, 2nd ed., section VIII.2.2;
-Mikkola & Tanikawa 1999). A system without such a term has nothing to resolve:
-:math:`g = 1`, steps equal in physical time.
+Wanner, *Geometric Numerical Integration*, 2nd ed., section VIII.2.2). A system
+without such a term has nothing to resolve: :math:`g = 1`, steps equal in physical
+time.
 
 A base counts as one that can vanish when it is linear in q, or quadratic with a
 positive semidefinite quadratic part whose minimum over q is 0 (to round-off
 at the parameters' default values); a softened :math:`1/\sqrt{r^2 + \epsilon^2}`
-has a positive minimum and is not singular.
+has a positive minimum and is not singular. Other negative powers of a base in q
+(a base that vanishes on a curve, :math:`1/(x^2 + y^2 - 1)`, or of higher degree) are
+not distances: :func:`default_step_function` leaves them out and warns, naming them,
+so that a g can be given by hand. The test is made at the parameters' default values:
+a base that reaches 0 there may not for other values (``params=`` of a run).
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,8 +50,8 @@ __all__ = ["ENCOUNTER_EXPONENT", "StepFunction", "default_step_function", "singu
 
 #: alpha of the default g: the local orbital time r^(3/2) (module docstring)
 ENCOUNTER_EXPONENT = 1.5
-#: a quadratic base whose minimum is within this fraction of its size at the parameters'
-#: defaults reaches 0: a squared distance
+#: a quadratic part whose smallest eigenvalue is above -_VANISHING times the base's size is
+#: positive semidefinite (the minimum itself is tested to 1e-9 of that size)
 _VANISHING = 1e-12
 
 
@@ -95,7 +100,17 @@ def default_step_function(system: LagrangianSystem) -> StepFunction:
     StepFunction
         ``source="singular terms"``, or g = 1 with ``source="none found"``.
     """
-    distances = singular_distances(system)
+    skipped: list[sp.Expr] = []
+    distances = singular_distances(system, skipped)
+    if skipped:
+        listed = ", ".join(str(base) for base in skipped[:4])
+        warnings.warn(
+            f"the default step-size function leaves out the singular terms with bases {listed}"
+            " (not a distance between points: a quadratic form that reaches 0 at one point, "
+            "or a linear form); give g= by hand if the run comes close to where they vanish",
+            RuntimeWarning,
+            stacklevel=3,
+        )
     if not distances:
         return StepFunction(sp.Integer(1), (), "none found")
     return StepFunction(
@@ -103,13 +118,16 @@ def default_step_function(system: LagrangianSystem) -> StepFunction:
     )
 
 
-def singular_distances(system: LagrangianSystem) -> list[sp.Expr]:
+def singular_distances(
+    system: LagrangianSystem, skipped: list[sp.Expr] | None = None
+) -> list[sp.Expr]:
     r"""The distances :math:`r_k(q)` at which a term of the Lagrangian is singular.
 
     Every power :math:`B^e` with :math:`e < 0` in :math:`L` whose base depends on
     q only and can vanish (module docstring) gives :math:`r = \sqrt{B}` (quadratic
     :math:`B`) or :math:`\sqrt{B^2}` (linear :math:`B`); bases that differ by a
-    constant factor give one distance. In order of first appearance.
+    constant factor give one distance. In order of first appearance. The bases of
+    other negative powers in q are appended to ``skipped`` when it is given.
     """
     q = list(system.q)
     defaults = dict(zip(system.params, system.param_defaults, strict=True))
@@ -126,6 +144,8 @@ def singular_distances(system: LagrangianSystem) -> list[sp.Expr]:
         coordinates = [s for s in q if s in base.free_symbols]
         squared = _squared_distance(base, coordinates, defaults)
         if squared is None:
+            if skipped is not None and base not in skipped:
+                skipped.append(base)
             continue
         # one distance per base up to a constant factor: the monic polynomial is the key
         key = sp.Poly(sp.expand(squared), *coordinates).monic().as_expr()

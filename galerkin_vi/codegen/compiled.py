@@ -16,11 +16,13 @@ numba writes its own files through temporary files.
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
 import sys
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cache
 from pathlib import Path
 from types import ModuleType
 
@@ -30,7 +32,7 @@ from numpy.typing import NDArray
 from ..cache import atomic_write, cache_root, discard_unreadable
 from .slots import POINT_SLOTS
 from .source import render_module
-from .spec import KernelSpec, signature
+from .spec import GENERATOR_VERSION, KernelSpec, signature
 
 __all__ = [
     "PointFunctions",
@@ -71,6 +73,18 @@ def _c_signatures() -> dict:
         "point_constraint_hessian": types.void(double, *(ptr,) * 4),
         "point_mass": types.void(double, *(ptr,) * 7),
     }
+
+
+@cache
+def generator_fingerprint() -> str:
+    """The code generator's version and a hash of its sources (codegen/*.py and the
+    repeated-term analysis it reads): a point-function key remembered by an earlier
+    process is trusted only under the same fingerprint and numba version."""
+    h = hashlib.sha256(GENERATOR_VERSION.encode())
+    here = Path(__file__).resolve().parent
+    for path in sorted(here.glob("*.py")) + [here.parent / "model" / "terms.py"]:
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
 
 
 def entry_path(key: str) -> Path:

@@ -18,7 +18,7 @@ in the order of the sparsity pattern.
 
 from __future__ import annotations
 
-from functools import cache
+from functools import lru_cache
 
 import numpy as np
 import sympy as sp
@@ -173,7 +173,7 @@ def _touched(
     return {array: np.unique(np.concatenate(cols)) for array, cols in out.items()}
 
 
-@cache
+@lru_cache(maxsize=64)
 def _group_code(group: ScatterGroup) -> tuple[list[str], list[str], str]:
     """One group's loop body, shared by every point function: the temporaries of a joint
     common-subexpression elimination of the template and all its derivatives, then

@@ -30,7 +30,16 @@ from ..cache import atomic_write_bytes, cache_root
 
 __all__ = ["analysis_key", "load_analysis", "store_analysis"]
 
-_SOURCES = ("symbolic.py", "system.py", "analysis_cache.py")
+#: the modules that compute what is stored (paths relative to this folder): an edit to
+#: any of them makes every stored analysis stale
+_SOURCES = (
+    "symbolic.py",
+    "system.py",
+    "terms.py",
+    "analysis_cache.py",
+    "../expression_walk.py",
+    "../printer.py",
+)
 
 
 @cache
