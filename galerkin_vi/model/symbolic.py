@@ -42,6 +42,7 @@ __all__ = [
     "Structure",
     "analyse_structure",
     "periodic_coordinates",
+    "sum_of_distinct",
     "pointwise_pieces",
     "without_point_masses",
 ]
@@ -272,14 +273,14 @@ def _lagrangian_derivatives(L: sp.Expr, q: list[sp.Symbol], v: list[sp.Symbol]) 
                     key = (block, int(row[i]), int(row[j]))
                     second.setdefault(key, []).append(next(values))
     n = len(q)
-    columns = {kind: [sp.Add(*first.get((kind, a), ())) for a in range(n)] for kind in "qv"}
+    columns = {kind: [sum_of_distinct(first.get((kind, a), ())) for a in range(n)] for kind in "qv"}
     Lq, Lv = sp.Matrix(columns["q"]), sp.Matrix(columns["v"])
     blocks = {}
     for name in ("Lqq", "Lqv", "Lvv"):
         entries = {}
         for (block, a, b), terms in second.items():
             if block == name:
-                total = sp.Add(*terms)
+                total = sum_of_distinct(terms)
                 if total != 0:
                     entries[(a, b)] = total
         blocks[name] = _sparse(n, n, entries)
@@ -289,6 +290,43 @@ def _lagrangian_derivatives(L: sp.Expr, q: list[sp.Symbol], v: list[sp.Symbol]) 
         Lq += _gradient(rest, q, derive)
         Lv += _gradient(rest, v, derive)
     return Lq, Lv, blocks["Lqq"], blocks["Lqv"], blocks["Lvv"]
+
+
+def sum_of_distinct(terms: list[sp.Expr] | tuple[sp.Expr, ...]) -> sp.Expr:
+    r"""``sp.Add(*terms)``, built without SymPy's evaluation where it has nothing to do.
+
+    The contributions of different instances to one entry of a derivative
+    (the four springs at a lattice site in :math:`L_{q_a q_a}`) are mostly
+    different expressions. :math:`\sum_i c_i P_i` with numbers :math:`c_i`
+    and pairwise distinct non-numeric parts :math:`P_i` has no like terms to
+    collect: the sum is the numbers added plus the terms as given, in the
+    given order, while ``Add`` would also sort them (a comparison of
+    expression trees per pair), which costs more than the rest of the
+    analysis of a lattice. Where two parts coincide, or a number is not
+    finite, ``Add`` evaluates as usual.
+    """
+    if len(terms) == 1:
+        return terms[0]
+    number = sp.S.Zero
+    parts: set[sp.Expr] = set()
+    rest = []
+    for term in terms:
+        for a in sp.Add.make_args(term):
+            if a.is_Number:
+                number += a
+                continue
+            part = a.as_coeff_Mul()[1]
+            if part in parts:
+                return sp.Add(*terms)
+            parts.add(part)
+            rest.append(a)
+    if not number.is_finite:
+        return sp.Add(*terms)
+    if not rest:
+        return number
+    if len(rest) == 1 and number == 0:
+        return rest[0]
+    return sp.Add._from_args(([number] if number != 0 else []) + rest)
 
 
 def _template_derivatives(group):

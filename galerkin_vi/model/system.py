@@ -14,7 +14,7 @@ from sympy.core.function import AppliedUndef
 
 from ..errors import DegenerateLagrangianError
 from ..numeric import FlatEvaluator
-from .analysis_cache import analysis_key, load_analysis, store_analysis
+from .analysis_cache import analysis_key, load_analysis, load_extra, store_analysis, store_extra
 from .contacts import Contact, check_contacts
 from .derived import DerivedData
 from .mechanics import (
@@ -341,13 +341,15 @@ class LagrangianSystem:
     def recalled(self, name: str):
         """A value stored with :meth:`remember` for these inputs (this or an earlier
         process), or None."""
-        return self._analysis.get(name)
+        if name not in self._analysis:
+            self._analysis[name] = load_extra(self.analysis_key, name)
+        return self._analysis[name]
 
     def remember(self, name: str, value) -> None:
         """Keep ``value`` (plain, picklable data derived from this system) in its
         analysis cache entry, for later processes."""
         self._analysis[name] = value
-        store_analysis(self.analysis_key, self._analysis)
+        store_extra(self.analysis_key, name, value)
 
     def _analyse(self, L, q_list, v_list, t, force_list, constraint_list) -> None:
         """Differentiate, check and analyse the model (what the analysis cache stores)."""
