@@ -428,16 +428,19 @@ def analyse_structure(
     autonomous = t is None or t not in timed
     zero_fv = not forced or _is_zero_matrix(pieces.fv)
     zero_Lqv = _is_zero_matrix(pieces.Lqv)
+    state = qv | ({t} if t is not None else set())
     lvv_symbols = symbols_of(pieces.Lvv.values())
     quadratic_in_v = not (lvv_symbols & set(v))
-    constant_mass = not (lvv_symbols & (qv | ({t} if t is not None else set())))
-    hess_symbols = symbols_of(
+    constant_mass = not (lvv_symbols & state)
+    hessians = (
         e
         for m in (pieces.Lqq, pieces.Lqv, pieces.Lvv, pieces.fq, pieces.fv)
         if m is not None
         for e in m.values()
     )
-    quadratic = not (hess_symbols & (qv | ({t} if t is not None else set())))
+    # the walk stops at the first coordinate, velocity or time it meets: a nonlinear
+    # model's first Hessian entry usually decides
+    quadratic = not any(node in state for node in distinct_nodes(hessians))
     return Structure(
         autonomous=autonomous,
         zero_Lqv=zero_Lqv,
