@@ -56,15 +56,16 @@ SYSTEMS = {
         def spring(dx, dy):
             e = sp.sqrt(dx**2 + dy**2) - 1
             return k / 2 * e**2 + beta / 4 * e**4
-        V = 0
+        springs = []  # summed once: V += ... re-sorts the growing sum per spring
         for i in range(n):
             for j in range(n):
                 a = idx(i, j)
                 X, Y = x[a] + j, y[a] + i   # displacements from the rest lattice
                 if j + 1 < n:
-                    V += spring(x[idx(i, j + 1)] + j + 1 - X, y[idx(i, j + 1)] + i - Y)
+                    springs.append(spring(x[idx(i, j + 1)] + j + 1 - X, y[idx(i, j + 1)] + i - Y))
                 if i + 1 < n:
-                    V += spring(x[idx(i + 1, j)] + j - X, y[idx(i + 1, j)] + i + 1 - Y)
+                    springs.append(spring(x[idx(i + 1, j)] + j - X, y[idx(i + 1, j)] + i + 1 - Y))
+        V = sp.Add(*springs)
         T = sum(c**2 for c in v) / 2
         system = gvi.LagrangianSystem(T - V, q, v)
         rng = np.random.default_rng(1)

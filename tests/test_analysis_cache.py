@@ -127,3 +127,66 @@ def test_a_remembered_point_summary_of_another_code_generator_is_not_reused(monk
         assert len(derived) == 1  # but the summary was derived again, not recalled
     finally:
         compiled.generator_fingerprint.cache_clear()
+
+
+def _lattice_row(n=12):
+    """A row of ``n`` masses in the plane with springs of the distance: repeated terms."""
+    x = sp.symbols(f"x0:{n}", real=True)
+    y = sp.symbols(f"y0:{n}", real=True)
+    u = sp.symbols(f"u0:{n}", real=True)
+    w = sp.symbols(f"w0:{n}", real=True)
+    L = sum(c**2 for c in (*u, *w)) / 2
+    for a in range(n - 1):
+        e = sp.sqrt((x[a + 1] - x[a] + 1) ** 2 + (y[a + 1] - y[a]) ** 2) - 1
+        L -= e**2 / 2 + e**4 / 4
+    return L, [*x, *y], [*u, *w]
+
+
+def test_a_loaded_large_analysis_is_the_stored_one_node_for_node(monkeypatch):
+    L, qs, vs = _lattice_row()
+    first = gvi.LagrangianSystem(L, qs, vs)
+    _no_differentiation(monkeypatch)
+    again = gvi.LagrangianSystem(L, qs, vs)
+    for name in ("Lq", "Lv", "Lqq", "Lqv", "Lvv"):
+        a, b = getattr(first.pieces, name), getattr(again.pieces, name)
+        assert a.shape == b.shape
+        # loaded without evaluation: the very same trees, not only equal values
+        assert all(sp.srepr(a[key]) == sp.srepr(b[key]) for key in a.todok())
+    z = np.linspace(-0.2, 0.3, len(qs))
+    np.testing.assert_array_equal(
+        again.evaluate("hessian", 0.0, z, z, again.param_defaults),
+        first.evaluate("hessian", 0.0, z, z, first.param_defaults),
+    )
+
+
+def test_remembered_values_go_beside_the_analysis_without_rewriting_it(cache_dir):
+    system = _model()
+    (main,) = (cache_dir / "systems").glob("*.pickle")
+    before = main.read_bytes()
+    system.remember("point_summary", ("numba", {"size": 3}))
+    assert main.read_bytes() == before
+    again = _model()
+    assert again.recalled("point_summary") == ("numba", {"size": 3})
+    assert again.recalled("absent") is None
+
+
+def test_sum_of_distinct_is_sympys_sum():
+    a, b, c = sp.symbols("a b c", real=True)
+    from galerkin_vi.model.symbolic import sum_of_distinct
+
+    cases = [
+        [sp.sqrt(a**2 + b**2), -2 * a * b, sp.Integer(3), sp.Rational(1, 2)],
+        [a * b, 2 * a * b],  # like terms: collected
+        [sp.Integer(1), sp.Integer(-1)],  # cancels to zero
+        [a + b, c - b],  # sums inside cancel
+        [sp.sin(a) ** 2],
+        [c, a + 2 * sp.cos(b)],
+    ]
+    for terms in cases:
+        total = sum_of_distinct(terms)
+        assert sp.simplify(total - sp.Add(*terms)) == 0
+        point = {a: 0.3, b: -1.2, c: 0.7}
+        assert float(total.subs(point)) == pytest.approx(float(sp.Add(*terms).subs(point)))
+    assert sum_of_distinct([sp.Integer(1), sp.Integer(-1)]) == 0
+    assert sum_of_distinct([a * b, 2 * a * b]) == 3 * a * b
+    assert sum_of_distinct([a + b, c - b]) == a + c

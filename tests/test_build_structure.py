@@ -136,7 +136,14 @@ def _outputs(namespace, spec, t, q, v, prm) -> dict[str, np.ndarray]:
 
 
 # ---------------------------------------------------------------------- tests
-@pytest.mark.parametrize("name", sorted(SYSTEMS))
+# the banded lattice's straight-line module alone takes seconds to render: a slow case
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(s, marks=pytest.mark.slow) if s == "lattice_banded" else s
+        for s in sorted(SYSTEMS)
+    ],
+)
 def test_scatter_loops_equal_the_straight_line_point_functions(name):
     system = SYSTEMS[name]()
     looped = codegen.kernel_spec(system)
@@ -213,9 +220,9 @@ def test_a_lattice_integrates_like_the_numpy_reference(small_lattice):
     assert "for _k in range" in compiled.source
     rng = np.random.default_rng(1)
     q0, v0 = 0.05 * rng.standard_normal(system.n), 0.1 * rng.standard_normal(system.n)
-    fast = compiled.integrate(q0, v0, h=0.05, n_steps=20, save_every=4)
+    fast = compiled.integrate(q0, v0, h=0.05, n_steps=8, save_every=4)
     slow = gvi.Integrator(system, gvi.Galerkin(2), backend="numpy").integrate(
-        q0, v0, h=0.05, n_steps=20, save_every=4
+        q0, v0, h=0.05, n_steps=8, save_every=4
     )
     np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-12)
     np.testing.assert_allclose(fast.p, slow.p, rtol=0, atol=1e-12)

@@ -528,11 +528,24 @@ def test_bad_input(build, error, match):
         vx**2 / 2 - x**2 - y**2,  # y has no kinetic term
         vx * vy - x**2 - y**2 + (vx - vy) ** 2 / 2 - (vx**2 + vy**2) / 2,  # cancels to 0
         x * vx + y * vy - x**2,  # linear in v: first-order Lagrangian
+        vx**2 / 2 + 1e-14 * vy**2 / 2 - x**2,  # constant diagonal, numerically singular
     ],
 )
 def test_singular_mass_matrix_is_degenerate(L):
     with pytest.raises(gvi.DegenerateLagrangianError, match="singular"):
         gvi.LagrangianSystem(L, [x, y], [vx, vy])
+
+
+def test_a_constant_diagonal_mass_is_decided_without_sampling(monkeypatch):
+    # its entries decide; L_vv is never compiled for the check
+    from galerkin_vi.model.system import LagrangianSystem
+
+    def refuse(self, name, *args):
+        raise AssertionError(f"evaluated {name}")
+
+    monkeypatch.setattr(LagrangianSystem, "evaluate", refuse)
+    system = gvi.LagrangianSystem(3 * vx**2 / 2 + 1e-6 * vy**2 / 2 - x**2 * y**2, [x, y], [vx, vy])
+    assert system.structure.constant_mass
 
 
 def test_degenerate_error_is_a_value_error():

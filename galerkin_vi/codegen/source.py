@@ -296,6 +296,10 @@ def _point_function(
         lines += ["", "", "@part", f"def {part}({params}):"]
         lines += _function_body(chunk, returns=partial, large=True, accumulate=accumulate)
         calls.append(f"{part}({params})")
+    if calls == [f"{name}_repeats({params})"]:
+        # the scatter loops alone: they are the function (numba compiles one function,
+        # not a part and a caller)
+        return ["", "", f"def {name}({params}):", *lines[4:]], tables
     lines += ["", "", f"def {name}({params}):"]
     if returns is not None:
         lines.append("    total = 0.0")

@@ -14,6 +14,7 @@ they are the same for every system (:mod:`galerkin_vi.loops`).
 from __future__ import annotations
 
 import hashlib
+import pickle
 import sys
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -398,7 +399,18 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
 
 def _group_text(group: ScatterGroup) -> str:
     """What names a scatter group in the cache key: its expressions and tables."""
-    table = hashlib.sha256(group.table.tobytes() + group.slots.tobytes()).hexdigest()
-    entries = ";".join(f"{a}={sp.srepr(e)}" for a, e in group.entries)
-    value = sp.srepr(group.value)
-    return f"{group.name}:{group.reads}:{group.table.shape}:{table}:{value}:{entries}"
+    h = hashlib.sha256(group.table.tobytes() + group.slots.tobytes())
+    # the template's expressions by their pickles: the same bytes in every process, and
+    # cheaper than srepr, which sorts the terms of every sum (analysis_cache.analysis_key)
+    for a, e in group.entries:
+        h.update(a.encode() + b"=" + _expression_bytes(e) + b";")
+    h.update(_expression_bytes(group.value))
+    return f"{group.name}:{group.reads}:{group.table.shape}:{h.hexdigest()}"
+
+
+def _expression_bytes(e: sp.Expr) -> bytes:
+    """``e`` as bytes that name it: its pickle, or ``srepr`` where it does not pickle."""
+    try:
+        return pickle.dumps(e, protocol=4)
+    except Exception:  # noqa: BLE001 - e.g. an expression holding a lambda
+        return sp.srepr(e).encode()

@@ -28,7 +28,7 @@ import sympy as sp
 
 from ..cache import atomic_write_bytes, cache_root
 
-__all__ = ["analysis_key", "load_analysis", "store_analysis"]
+__all__ = ["analysis_key", "load_analysis", "load_extra", "store_analysis", "store_extra"]
 
 #: the modules that compute what is stored (paths relative to this folder): an edit to
 #: any of them makes every stored analysis stale
@@ -75,14 +75,49 @@ def _path(key: str) -> Path:
     return cache_root() / "systems" / f"{key[:40]}.pickle"
 
 
-def load_analysis(key: str) -> dict | None:
-    """The stored analysis for ``key``, or None (absent, unreadable, or another key's)."""
+def _extra_path(key: str, name: str) -> Path:
+    return cache_root() / "systems" / f"{key[:40]}.{name}.pickle"
+
+
+def _loads(path: Path, key: str):
+    """The value pickled at ``path`` for ``key``, or None.
+
+    Unpickling rebuilds each SymPy node from its stored arguments, which are
+    already in canonical form: SymPy's evaluation (flattening, sorting,
+    assumption queries) would only redo what was done before storing, and costs
+    more than deriving a large model afresh. Under ``evaluate(False)`` the
+    arguments are taken as they are.
+    """
     try:
-        data = _path(key).read_bytes()
-        stored_key, analysis = pickle.loads(data)
+        data = path.read_bytes()
+        with sp.evaluate(False):
+            stored_key, value = pickle.loads(data)
     except Exception:  # noqa: BLE001 - absent or damaged: derive afresh
         return None
-    return analysis if stored_key == key else None
+    return value if stored_key == key else None
+
+
+def load_analysis(key: str) -> dict | None:
+    """The stored analysis for ``key``, or None (absent, unreadable, or another key's)."""
+    return _loads(_path(key), key)
+
+
+def load_extra(key: str, name: str):
+    """A value stored with :func:`store_extra` for ``key`` and ``name``, or None."""
+    return _loads(_extra_path(key, name), key)
+
+
+def store_extra(key: str, name: str, value: Any) -> None:
+    """Store ``value`` (plain data derived from the system of ``key``) beside its analysis.
+
+    In a file of its own: data found after the analysis (a compiled module's
+    summary) does not re-pickle the analysis, whose expressions are most of
+    the cost of storing a large model.
+    """
+    try:
+        atomic_write_bytes(_extra_path(key, name), pickle.dumps((key, value)))
+    except (OSError, pickle.PicklingError, TypeError, AttributeError, RecursionError):
+        pass
 
 
 def store_analysis(key: str, analysis: dict) -> None:

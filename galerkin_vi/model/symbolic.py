@@ -42,6 +42,7 @@ __all__ = [
     "Structure",
     "analyse_structure",
     "periodic_coordinates",
+    "sum_of_distinct",
     "pointwise_pieces",
     "without_point_masses",
 ]
@@ -272,14 +273,14 @@ def _lagrangian_derivatives(L: sp.Expr, q: list[sp.Symbol], v: list[sp.Symbol]) 
                     key = (block, int(row[i]), int(row[j]))
                     second.setdefault(key, []).append(next(values))
     n = len(q)
-    columns = {kind: [sp.Add(*first.get((kind, a), ())) for a in range(n)] for kind in "qv"}
+    columns = {kind: [sum_of_distinct(first.get((kind, a), ())) for a in range(n)] for kind in "qv"}
     Lq, Lv = sp.Matrix(columns["q"]), sp.Matrix(columns["v"])
     blocks = {}
     for name in ("Lqq", "Lqv", "Lvv"):
         entries = {}
         for (block, a, b), terms in second.items():
             if block == name:
-                total = sp.Add(*terms)
+                total = sum_of_distinct(terms)
                 if total != 0:
                     entries[(a, b)] = total
         blocks[name] = _sparse(n, n, entries)
@@ -289,6 +290,43 @@ def _lagrangian_derivatives(L: sp.Expr, q: list[sp.Symbol], v: list[sp.Symbol]) 
         Lq += _gradient(rest, q, derive)
         Lv += _gradient(rest, v, derive)
     return Lq, Lv, blocks["Lqq"], blocks["Lqv"], blocks["Lvv"]
+
+
+def sum_of_distinct(terms: list[sp.Expr] | tuple[sp.Expr, ...]) -> sp.Expr:
+    r"""``sp.Add(*terms)``, built without SymPy's evaluation where it has nothing to do.
+
+    The contributions of different instances to one entry of a derivative
+    (the four springs at a lattice site in :math:`L_{q_a q_a}`) are mostly
+    different expressions. :math:`\sum_i c_i P_i` with numbers :math:`c_i`
+    and pairwise distinct non-numeric parts :math:`P_i` has no like terms to
+    collect: the sum is the numbers added plus the terms as given, in the
+    given order, while ``Add`` would also sort them (a comparison of
+    expression trees per pair), which costs more than the rest of the
+    analysis of a lattice. Where two parts coincide, or a number is not
+    finite, ``Add`` evaluates as usual.
+    """
+    if len(terms) == 1:
+        return terms[0]
+    number = sp.S.Zero
+    parts: set[sp.Expr] = set()
+    rest = []
+    for term in terms:
+        for a in sp.Add.make_args(term):
+            if a.is_Number:
+                number += a
+                continue
+            part = a.as_coeff_Mul()[1]
+            if part in parts:
+                return sp.Add(*terms)
+            parts.add(part)
+            rest.append(a)
+    if not number.is_finite:
+        return sp.Add(*terms)
+    if not rest:
+        return number
+    if len(rest) == 1 and number == 0:
+        return rest[0]
+    return sp.Add._from_args(([number] if number != 0 else []) + rest)
 
 
 def _template_derivatives(group):
@@ -390,16 +428,19 @@ def analyse_structure(
     autonomous = t is None or t not in timed
     zero_fv = not forced or _is_zero_matrix(pieces.fv)
     zero_Lqv = _is_zero_matrix(pieces.Lqv)
+    state = qv | ({t} if t is not None else set())
     lvv_symbols = symbols_of(pieces.Lvv.values())
     quadratic_in_v = not (lvv_symbols & set(v))
-    constant_mass = not (lvv_symbols & (qv | ({t} if t is not None else set())))
-    hess_symbols = symbols_of(
+    constant_mass = not (lvv_symbols & state)
+    hessians = (
         e
         for m in (pieces.Lqq, pieces.Lqv, pieces.Lvv, pieces.fq, pieces.fv)
         if m is not None
         for e in m.values()
     )
-    quadratic = not (hess_symbols & (qv | ({t} if t is not None else set())))
+    # the walk stops at the first coordinate, velocity or time it meets: a nonlinear
+    # model's first Hessian entry usually decides
+    quadratic = not any(node in state for node in distinct_nodes(hessians))
     return Structure(
         autonomous=autonomous,
         zero_Lqv=zero_Lqv,

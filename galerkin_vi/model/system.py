@@ -14,7 +14,7 @@ from sympy.core.function import AppliedUndef
 
 from ..errors import DegenerateLagrangianError
 from ..numeric import FlatEvaluator
-from .analysis_cache import analysis_key, load_analysis, store_analysis
+from .analysis_cache import analysis_key, load_analysis, load_extra, store_analysis, store_extra
 from .contacts import Contact, check_contacts
 from .derived import DerivedData
 from .mechanics import (
@@ -341,13 +341,15 @@ class LagrangianSystem:
     def recalled(self, name: str):
         """A value stored with :meth:`remember` for these inputs (this or an earlier
         process), or None."""
-        return self._analysis.get(name)
+        if name not in self._analysis:
+            self._analysis[name] = load_extra(self.analysis_key, name)
+        return self._analysis[name]
 
     def remember(self, name: str, value) -> None:
         """Keep ``value`` (plain, picklable data derived from this system) in its
         analysis cache entry, for later processes."""
         self._analysis[name] = value
-        store_analysis(self.analysis_key, self._analysis)
+        store_extra(self.analysis_key, name, value)
 
     def _analyse(self, L, q_list, v_list, t, force_list, constraint_list) -> None:
         """Differentiate, check and analyse the model (what the analysis cache stores)."""
@@ -541,9 +543,19 @@ class LagrangianSystem:
         Samples |q|, |v| at several scales, so that Lagrangians defined only on
         part of the space (e.g. |v| < 1) are sampled inside their domain too.
         """
+        n = self.n
+        diagonal = _constant_diagonal(self.pieces.Lvv, n)
+        if diagonal is not None:
+            # a constant diagonal mass (a lattice, a chain, particles): its entries decide,
+            # without compiling L_vv or factorising an n x n matrix
+            if is_regular(np.diag(diagonal)) if n <= 64 else _regular_diagonal(diagonal):
+                return
+            raise DegenerateLagrangianError(
+                "d2L/dv2 is singular (a constant diagonal with a zero entry): the Legendre "
+                "transform p = dL/dv cannot be inverted, so the Lagrangian is degenerate"
+            )
         rng = np.random.default_rng(12345)
         prm = self.param_defaults
-        n = self.n
         finite_samples = 0
         for scale in (1.0, 0.3, 0.05):
             for _ in range(2):
@@ -815,6 +827,20 @@ def _check_printable(expr: sp.Expr, name: str) -> None:
         raise ValueError(
             f"{name} uses functions the code generators cannot compile: {', '.join(unsupported)}"
         )
+
+
+def _constant_diagonal(m: sp.MatrixBase, n: int) -> NDArray | None:
+    """The diagonal of ``m`` if it is diagonal with numbers only, else None."""
+    entries = m.todok()
+    if len(entries) != n or not all(a == b and e.is_Number for (a, b), e in entries.items()):
+        return None
+    return np.array([float(entries[(a, a)]) for a in range(n)])
+
+
+def _regular_diagonal(d: NDArray) -> bool:
+    """:func:`is_regular` of ``diag(d)``: its singular values are ``|d|``."""
+    s = np.abs(d)
+    return bool(np.all(np.isfinite(s)) and s.min() > 1e-12 * max(s.max(), 1.0))
 
 
 def are_regular(stack: NDArray) -> NDArray[np.bool_]:

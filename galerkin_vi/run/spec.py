@@ -191,8 +191,18 @@ def banded_pattern(summary) -> NDArray[np.int64] | None:
     dense storage (a compiled switch, :mod:`galerkin_vi.loops.traits`)."""
     if not summary.banded:
         return None
-    position = {pair: k for k, pair in enumerate(summary.pattern)}
-    return np.array([(a, b, position.get((b, a), 0)) for a, b in summary.pattern], dtype=np.int64)
+    pattern = np.array(summary.pattern, dtype=np.int64).reshape(-1, 2)
+    if not len(pattern):
+        return np.zeros((0, 3), dtype=np.int64)
+    # position of (b, a) for each (a, b): a search among the entries' keys a n + b, sorted
+    width = int(pattern.max(initial=0)) + 1
+    keys = pattern[:, 0] * width + pattern[:, 1]
+    order = np.argsort(keys, kind="stable")
+    transposed = pattern[:, 1] * width + pattern[:, 0]
+    at = np.minimum(np.searchsorted(keys[order], transposed), len(keys) - 1)
+    found = keys[order][at] == transposed
+    position = np.where(found, order[at], 0)
+    return np.column_stack([pattern, position]).astype(np.int64)
 
 
 def periodic_mask(system: LagrangianSystem) -> NDArray[np.bool_]:
