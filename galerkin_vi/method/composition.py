@@ -218,10 +218,12 @@ class Composition:
 
     Attributes
     ----------
-    order, stages, scheme, reference, coefficients
-        The order, the number :math:`m` of Störmer–Verlet sub-steps (one force
-        evaluation each), the scheme's name, its source, and the
-        :math:`\gamma_i` (float64, palindromic).
+    order : int
+        The order p of the composition.
+    scheme : str
+        The scheme's name; :attr:`stages` (the number :math:`m` of Störmer–Verlet
+        sub-steps, one force evaluation each), :attr:`reference` (its source) and
+        :attr:`coefficients` (the :math:`\gamma_i`, float64, palindromic) follow from it.
 
     Notes
     -----
