@@ -238,7 +238,7 @@ class Composition:
     >>> from galerkin_vi import Composition
     >>> Composition(8).stages
     17
-    >>> Composition(4, "suzuki").coefficients.sum()
+    >>> float(Composition(4, "suzuki").coefficients.sum())
     1.0
     """
 
