@@ -144,7 +144,8 @@ def singular_distances(
         coordinates = [s for s in q if s in base.free_symbols]
         squared = _squared_distance(base, coordinates, defaults)
         if squared is None:
-            if skipped is not None and base not in skipped:
+            unresolved = not _positive(base, coordinates, defaults)
+            if skipped is not None and unresolved and base not in skipped:
                 skipped.append(base)
             continue
         # one distance per base up to a constant factor: the monic polynomial is the key
@@ -173,6 +174,27 @@ def _squared_distance(base: sp.Expr, q: list[sp.Symbol], defaults: dict) -> sp.E
 def _reaches_zero(poly: sp.Poly, defaults: dict) -> bool:
     r"""Whether :math:`B = q^T A q + b^T q + c` (at the parameters' defaults) has
     :math:`A \succeq 0` and :math:`\min_q B = c - \tfrac14 b^T A^+ b = 0`."""
+    found = _minimum(poly, defaults)
+    return found is not None and abs(found[0]) <= 1e-9 * found[1]
+
+
+def _positive(base: sp.Expr, q: list[sp.Symbol], defaults: dict) -> bool:
+    """Whether ``base`` is a quadratic polynomial in ``q`` with a positive minimum (a
+    softened distance: nothing to resolve)."""
+    expanded = sp.expand(base)
+    if not expanded.is_polynomial(*q):
+        return False
+    poly = sp.Poly(expanded, *q)
+    if poly.total_degree() != 2:
+        return False
+    found = _minimum(poly, defaults)
+    return found is not None and found[0] > 1e-9 * found[1]
+
+
+def _minimum(poly: sp.Poly, defaults: dict) -> tuple[float, float] | None:
+    r"""``(min_q B, size)`` of a quadratic :math:`B = q^T A q + b^T q + c` at the
+    parameters' defaults (size: the largest coefficient, at least 1), or None when
+    :math:`B` is not bounded below or its coefficients are not numbers there."""
     n = len(poly.gens)
     a = np.zeros((n, n))
     b = np.zeros(n)
@@ -180,7 +202,7 @@ def _reaches_zero(poly: sp.Poly, defaults: dict) -> bool:
     for powers, coefficient in poly.terms():
         value = sp.sympify(coefficient).xreplace(defaults)
         if not value.is_number:
-            return False
+            return None
         value = float(value)
         where = [k for k, power in enumerate(powers) for _ in range(power)]
         if len(where) == 2:
@@ -193,9 +215,9 @@ def _reaches_zero(poly: sp.Poly, defaults: dict) -> bool:
             c += value
     size = max(1.0, abs(c), float(np.abs(a).max()), float(np.abs(b).max()))
     if np.linalg.eigvalsh(a).min() < -_VANISHING * size:
-        return False
+        return None
     # the minimiser solves 2 A q = -b; b outside the range of A: B is unbounded below
     q_min = np.linalg.lstsq(2.0 * a, -b, rcond=None)[0]
     if np.abs(2.0 * a @ q_min + b).max() > 1e-9 * size:
-        return False
-    return abs(c + 0.5 * float(b @ q_min)) <= 1e-9 * size
+        return None
+    return c + 0.5 * float(b @ q_min), size
