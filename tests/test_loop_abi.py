@@ -132,28 +132,18 @@ def test_users_numba_code_compiles_with_numbas_originals_after_a_run():
     }
 
 
-def test_users_numba_code_compiles_with_numbas_originals_after_tangent_runs():
-    # the tangent loops, their member loop, the adjoint's reverse pass and the generated
-    # parameter derivatives load or compile as the time loops do: nothing stays installed
-    result = _python(
-        """
+def _originals_after(runs: str) -> dict:
+    """In a fresh interpreter: import galerkin_vi, execute ``runs``, then compile a user's
+    own njit function; which of numba's compile-time attributes are still numba's own."""
+    prologue = """
         import json
         import numpy as np
         import sympy as sp
         from numba import njit
         before = originals()
         import galerkin_vi as gvi
-
-        q, v, k = sp.symbols("q v k")
-        system = gvi.LagrangianSystem(v**2 / 2 + k * sp.cos(q), [q], [v], params={k: 1.0})
-        integrator = gvi.Integrator(system, gvi.Galerkin(2))
-        traj = integrator.integrate([1.0], [0.0], h=0.1, n_steps=5, tangent=True,
-                                    sensitivity=[k])
-        many = integrator.integrate_many([[1.0], [0.5]], [[0.0], [0.1]], h=0.1, n_steps=5,
-                                         tangent=True, workers=1)
-        grad = gvi.gradient(integrator, q**2, [1.0], [0.0], h=0.1, n_steps=5)
-        assert traj.success and grad.success and len(many) == 2
-
+        """
+    epilogue = """
         @njit
         def user_sum(a):
             total = 0.0
@@ -166,6 +156,25 @@ def test_users_numba_code_compiles_with_numbas_originals_after_tangent_runs():
         same_now["value"] = value == 14.0
         print(json.dumps(same_now))
         """
+    parts = (prologue, runs, epilogue)
+    return _python("\n".join(textwrap.dedent(part) for part in parts))
+
+
+def test_users_numba_code_compiles_with_numbas_originals_after_tangent_runs():
+    # the tangent loops, their member loop, the adjoint's reverse pass and the generated
+    # parameter derivatives load or compile as the time loops do: nothing stays installed
+    result = _originals_after(
+        """
+        q, v, k = sp.symbols("q v k")
+        system = gvi.LagrangianSystem(v**2 / 2 + k * sp.cos(q), [q], [v], params={k: 1.0})
+        integrator = gvi.Integrator(system, gvi.Galerkin(2))
+        traj = integrator.integrate([1.0], [0.0], h=0.1, n_steps=5, tangent=True,
+                                    sensitivity=[k])
+        many = integrator.integrate_many([[1.0], [0.5]], [[0.0], [0.1]], h=0.1, n_steps=5,
+                                         tangent=True, workers=1)
+        grad = gvi.gradient(integrator, q**2, [1.0], [0.0], h=0.1, n_steps=5)
+        assert traj.success and grad.success and len(many) == 2
+        """
     )
     assert result == dict.fromkeys(result, True) and len(result) == 6
 
@@ -173,13 +182,8 @@ def test_users_numba_code_compiles_with_numbas_originals_after_tangent_runs():
 def test_users_numba_code_compiles_with_numbas_originals_after_multibody_runs():
     # the constrained loop's band variant (a chain), a rigid body on a joint and a body
     # contact load or compile as the other loops do: nothing stays installed
-    result = _python(
+    result = _originals_after(
         """
-        import json
-        import numpy as np
-        from numba import njit
-        before = originals()
-        import galerkin_vi as gvi
         from galerkin_vi.tools.warmup import _runs
 
         label, rods, method, _, q0, v0 = next(r for r in _runs() if r[0] == "constrained, banded")
@@ -193,18 +197,32 @@ def test_users_numba_code_compiles_with_numbas_originals_after_multibody_runs():
         bounce = gvi.Integrator(mb.system, gvi.Galerkin(2)).integrate(q0, v0=v0, h=0.01,
                                                                       n_steps=30)
         assert bounce.success and len(bounce.impacts) >= 1
+        """
+    )
+    assert result == dict.fromkeys(result, True) and len(result) == 6
 
-        @njit
-        def user_sum(a):
-            total = 0.0
-            for value in a:
-                total += value * value
-            return total
 
-        value = user_sum(np.arange(4.0))
-        same_now = same(before, originals())
-        same_now["value"] = value == 14.0
-        print(json.dumps(same_now))
+def test_users_numba_code_compiles_with_numbas_originals_after_issue_30_runs():
+    # a composition and its tangent loop, scatter-loop point functions of springs between
+    # scattered pairs, and an adaptive run with the persistent fixed point: nothing stays
+    result = _originals_after(
+        """
+        from galerkin_vi.problems import kepler
+
+        orbit = kepler(0.6)
+        composed = gvi.Integrator(orbit.system, gvi.Composition(6))
+        assert composed.integrate(orbit.q0, orbit.v0, h=0.05, n_steps=5, tangent=True).success
+        xs, ws = sp.symbols("x0:150"), sp.symbols("w0:150")
+        ring = gvi.LagrangianSystem(
+            sum(w**2 for w in ws) / 2
+            - sum((xs[(3 * i + 1) % 150] - xs[i]) ** 4 / 4 for i in range(150)),
+            list(xs), list(ws),
+        )
+        spring = gvi.Integrator(ring, gvi.Galerkin(2))
+        assert "for _k in range" in spring.source
+        assert spring.integrate(np.linspace(0, 1, 150), np.zeros(150), h=0.01, n_steps=3).success
+        adaptive = gvi.AdaptiveIntegrator(orbit.system, gvi.Galerkin(3, gvi.gauss_legendre(3)))
+        assert adaptive.integrate(orbit.q0, orbit.v0, h=0.1, n_steps=5).success
         """
     )
     assert result == dict.fromkeys(result, True) and len(result) == 6
