@@ -24,6 +24,7 @@ import sympy as sp
 import galerkin_vi as gvi
 import galerkin_vi.run.loop_choice as loop_choice
 from galerkin_vi import problems
+from galerkin_vi.expression_walk import structural_bytes
 from galerkin_vi.model.system import is_regular
 from galerkin_vi.run.chunks import CHUNK_WORK
 
@@ -132,9 +133,13 @@ def legendre_start() -> None:
 
 
 def analysis_key() -> None:
-    """Bytes to hash of the Lagrangian of a 60-mass chain: pickle against srepr."""
+    """Bytes to hash of the Lagrangian of a 60-mass chain: pickles against srepr."""
     L = problems.spring_chain(60, beta=1.0).system.L
-    for label, call in (("pickle", lambda: pickle.dumps(L)), ("srepr", lambda: sp.srepr(L))):
+    for label, call in (
+        ("pickle", lambda: pickle.dumps(L)),
+        ("structural pickle", lambda: structural_bytes(L)),
+        ("srepr", lambda: sp.srepr(L)),
+    ):
         print(f"{label}: {1e3 * best_seconds(call, number=10):.2f} ms")
 
 

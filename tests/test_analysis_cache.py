@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -43,6 +45,30 @@ def test_a_second_build_loads_the_analysis_instead_of_deriving_it(monkeypatch, c
     x = np.array([[0.3], [1.1]])
     w = np.array([[0.2], [-0.4]])
     np.testing.assert_array_equal(again.hamiltonian(x, w), first.hamiltonian(x, w))
+
+
+def _with_a_copy_of_q():
+    """The model's Lagrangian with ``q**4`` holding an equal but distinct ``Symbol('q')``.
+
+    What SymPy's cache hands out when a cached ``Pow`` outlived the symbol it was
+    made with (evicted and made again by a later ``Symbol('q')``).
+    """
+    sp.core.cache.clear_cache()
+    copy = sp.Symbol.__xnew__(sp.Symbol, "q")
+    assert copy == q and copy is not q
+    L = v**2 / 2 - k * sp.Pow(copy, 4) / 4 + sp.cos(q)
+    sp.core.cache.clear_cache()
+    return L
+
+
+def test_one_model_has_one_key_whichever_objects_sympys_cache_holds(monkeypatch):
+    L = _with_a_copy_of_q()
+    clean = _model().L
+    assert L == clean and pickle.dumps(L) != pickle.dumps(clean)  # the case this test is for
+    first = gvi.LagrangianSystem(L, [q], [v], params={k: 2.0})
+    _no_differentiation(monkeypatch)
+    again = _model()
+    assert again.analysis_key == first.analysis_key and again.pieces == first.pieces
 
 
 def test_the_key_follows_every_input(monkeypatch):

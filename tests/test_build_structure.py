@@ -19,6 +19,7 @@ import sympy as sp
 
 import galerkin_vi as gvi
 from galerkin_vi import codegen
+from galerkin_vi.expression_walk import structural_bytes
 from galerkin_vi.model.terms import repeated_terms, substitute
 
 
@@ -265,3 +266,29 @@ def test_sensitivity_to_a_parameter_of_repeated_terms():
     difference = (up.q[-1] - down.q[-1]) / (2 * eps)
     np.testing.assert_allclose(run.sensitivity[-1, : system.n, 0], difference, rtol=1e-5,
                                atol=1e-8)  # fmt: skip
+
+
+def test_structural_bytes_name_an_expression_by_its_structure_not_its_objects():
+    q = sp.Symbol("q")
+    sp.core.cache.clear_cache()
+    copy = sp.Symbol.__xnew__(sp.Symbol, "q")
+    held = sp.cos(q) + sp.Pow(copy, 4)  # two distinct objects for one symbol
+    sp.core.cache.clear_cache()
+    shared = sp.cos(q) + q**4
+    assert held == shared
+    assert structural_bytes(held) == structural_bytes(shared)
+    assert structural_bytes((held, [shared])) == structural_bytes((shared, [held]))
+    x, y = sp.symbols("x y")
+    others = [x + y, x * y, x - y, sp.Symbol("q", positive=True) ** 4 + sp.cos(q), held + 1]
+    names = {structural_bytes(e) for e in [held, *others]}
+    assert len(names) == len(others) + 1
+
+
+def test_structural_bytes_fall_back_to_srepr_for_what_does_not_pickle():
+    class Local(sp.Symbol):  # a class inside a function: pickle cannot name it
+        pass
+
+    e = sp.cos(Local("a")) + 1
+    with pytest.raises((pickle.PicklingError, AttributeError)):
+        pickle.dumps(e)
+    assert structural_bytes(e) == sp.srepr(e).encode()

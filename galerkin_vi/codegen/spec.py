@@ -14,7 +14,6 @@ they are the same for every system (:mod:`galerkin_vi.loops`).
 from __future__ import annotations
 
 import hashlib
-import pickle
 import sys
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -22,6 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import sympy as sp
 
+from ..expression_walk import structural_bytes
 from ..method.stage_form import has_stage_form
 from ..model.symbolic import pointwise_pieces, without_point_masses
 from ..model.terms import repeated_terms
@@ -400,8 +400,8 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
 def _group_text(group: ScatterGroup) -> str:
     """What names a scatter group in the cache key: its expressions and tables."""
     h = hashlib.sha256(group.table.tobytes() + group.slots.tobytes())
-    # the template's expressions by their pickles: the same bytes in every process, and
-    # cheaper than srepr, which sorts the terms of every sum (analysis_cache.analysis_key)
+    # the template's expressions by their structural pickles: the same bytes in every
+    # process, and cheaper than srepr, which sorts the terms of every sum
     for a, e in group.entries:
         h.update(a.encode() + b"=" + _expression_bytes(e) + b";")
     h.update(_expression_bytes(group.value))
@@ -409,8 +409,5 @@ def _group_text(group: ScatterGroup) -> str:
 
 
 def _expression_bytes(e: sp.Expr) -> bytes:
-    """``e`` as bytes that name it: its pickle, or ``srepr`` where it does not pickle."""
-    try:
-        return pickle.dumps(e, protocol=4)
-    except Exception:  # noqa: BLE001 - e.g. an expression holding a lambda
-        return sp.srepr(e).encode()
+    """``e`` as bytes that name it (:func:`~galerkin_vi.expression_walk.structural_bytes`)."""
+    return structural_bytes(e)

@@ -27,6 +27,7 @@ from typing import Any
 import sympy as sp
 
 from ..cache import atomic_write_bytes, cache_root
+from ..expression_walk import structural_bytes
 
 __all__ = ["analysis_key", "load_analysis", "load_extra", "store_analysis", "store_extra"]
 
@@ -52,21 +53,19 @@ def _sources_hash() -> str:
 
 
 def analysis_key(*parts: Any) -> str:
-    """SHA-256 of ``parts``, by their pickles.
+    """SHA-256 of ``parts``, by their structural pickles.
 
     SymPy pickles an expression as its class and canonically ordered arguments
     (symbols with their names and assumptions): the bytes are the same in every
-    process, whatever the hash seed, and tens of times cheaper to make than
-    ``srepr`` (docs/performance.md, "Measurements behind design choices"). A part that does
-    not pickle is hashed by ``srepr``.
+    process, whatever the hash seed, and several times cheaper to make than
+    ``srepr`` (docs/performance.md, "Measurements behind design choices").
+    :func:`~galerkin_vi.expression_walk.structural_bytes` shares repeated nodes by
+    equality, so two builds of one model give one key whichever objects SymPy's
+    cache handed out. A part that does not pickle is hashed by ``srepr``.
     """
     h = hashlib.sha256()
     for part in (_sources_hash(), sp.__version__, sys.version, *parts):
-        try:
-            data = pickle.dumps(part, protocol=4)
-        except Exception:  # noqa: BLE001 - e.g. an expression holding a lambda
-            data = sp.srepr(part).encode()
-        h.update(data)
+        h.update(structural_bytes(part))
         h.update(b"\0")
     return h.hexdigest()
 
