@@ -11,7 +11,7 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from . import codegen
-from .method.composition import Composition
+from .method.composition import VERLET_SCHEMES, Composition
 from .method.galerkin import Galerkin
 from .model.system import LagrangianSystem
 from .reference import resolve_backend
@@ -591,6 +591,13 @@ def _check_composition(system: LagrangianSystem, method: Composition, backend: s
         raise ValueError(
             f"{method!r} composes explicit Stormer-Verlet steps, which need a separable "
             f"L = v.M.v/2 + a(t).v - V(t, q) with constant M: {obstacle}; use a Galerkin method"
+        )
+    obstacle = composition_obstacle(system, method)
+    if obstacle is not None:
+        other = Composition(method.order, VERLET_SCHEMES[method.order])
+        raise ValueError(
+            f"{method!r} is a splitting with free kicks: {obstacle}; use {other!r} "
+            "(a composition of Stormer-Verlet steps) or a Galerkin method"
         )
     if backend != "numba":
         raise ValueError(

@@ -1,21 +1,23 @@
-r"""The explicit loop: symmetric compositions of Störmer–Verlet, the degree-1 two-point
-Lobatto method (Störmer–Verlet itself is the one-stage composition :math:`\gamma = (1)`).
+r"""The explicit loop: symmetric compositions of Störmer–Verlet and splittings
+(:mod:`galerkin_vi.method.composition`); Störmer–Verlet, the degree-1 two-point
+Lobatto method, is the one-stage composition.
 
-For a separable :math:`L = \tfrac12 v^TMv + a(t)\cdot v - V(t, q)` the stage
-equation of a Störmer–Verlet sub-step of length :math:`\eta = \gamma_i h` from
-:math:`\tau_{i-1}` to :math:`\tau_i = t_k + c_i h` (:math:`c_i = \sum_{j \le i}\gamma_j`)
-is linear in the new position and solved in closed form, with :math:`M^{-1}`
-computed once:
+For a separable :math:`L = \tfrac12 v^TMv + a(t)\cdot v - V(t, q)` a sub-step with
+drift :math:`a_i` and kicks :math:`\beta^\pm_i` (:class:`~galerkin_vi.method.composition.SubSteps`)
+from :math:`\tau_{i-1}` to :math:`\tau_i = t_k + c_i h` (:math:`c_i = \sum_{j \le i} a_j`)
+is solved in closed form, with :math:`M^{-1}` computed once:
 
 .. math::
 
-    v = M^{-1}\big(p + \tfrac\eta2 L_q(\tau_{i-1}, q) - \bar a\big),\quad
-    q' = q + \eta v,\quad
-    p' = p + \tfrac\eta2 \big(L_q(\tau_{i-1}, q) + L_q(\tau_i, q')\big),
+    v = M^{-1}\big(p + \beta^-_i h\,L_q(\tau_{i-1}, q) - \bar a\big),\quad
+    q' = q + a_i h\,v,\quad
+    p' = p + h\big(\beta^-_i L_q(\tau_{i-1}, q) + \beta^+_i L_q(\tau_i, q')\big),
 
-with :math:`\bar a = \tfrac12(a(\tau_{i-1}) + a(\tau_i))` and :math:`a(t) = L_v(t, q, 0)`.
-The force at the end of sub-step i is the force at the start of sub-step i + 1
-(first same as last): one gradient call per sub-step.
+with :math:`\bar a = \tfrac12(a(\tau_{i-1}) + a(\tau_i))` and :math:`a(t) = L_v(t, q, 0)`;
+a Störmer–Verlet sub-step of length :math:`\eta = \gamma_i h` has
+:math:`a_i = \gamma_i`, :math:`\beta^\pm_i = \gamma_i/2`. The force at the end of
+sub-step i is the force at the start of sub-step i + 1 (first same as last): one
+gradient call per sub-step.
 """
 
 # ruff: noqa: N803, N806
@@ -44,19 +46,22 @@ def explicit_loop(
     prm,
     Minv,
     Minv_diagonal,
-    gamma,
+    drift,
+    kick_before,
+    kick_after,
     nodes,
     t_out,
     q_out,
     p_out,
     turns_out,
 ):
-    r"""Run ``n_steps`` steps of the composition ``gamma`` of Störmer–Verlet from (q0, p0).
+    r"""Run ``n_steps`` steps of a composition or splitting from (q0, p0).
 
-    ``gamma`` holds the sub-steps' fractions :math:`\gamma_i` of the step,
-    ``nodes`` their ends :math:`c_i = \sum_{j\le i}\gamma_j` (``nodes[-1] = 1``
-    exactly, so that the step ends on :math:`t_0 + (k + 1)h`); Störmer–Verlet is
-    ``gamma = nodes = [1.0]``. ``Minv`` is :math:`M^{-1}`; ``Minv_diagonal`` its
+    ``drift``, ``kick_before`` and ``kick_after`` hold the sub-steps' fractions
+    :math:`a_i`, :math:`\beta^-_i`, :math:`\beta^+_i` of the step, ``nodes`` their
+    ends :math:`c_i = \sum_{j\le i} a_j` (``nodes[-1] = 1`` exactly, so that the
+    step ends on :math:`t_0 + (k + 1)h`); Störmer–Verlet is ``drift = nodes = [1.0]``,
+    ``kick_before = kick_after = [0.5]``. ``Minv`` is :math:`M^{-1}`; ``Minv_diagonal`` its
     diagonal when :math:`M` is diagonal (point masses: n, not :math:`n^2`, per
     sub-step), else ``None`` (a separate compiled variant, so that the dense
     product is not even in the diagonal one). ``periodic`` (the angles' mask, or
@@ -66,7 +71,7 @@ def explicit_loop(
     :mod:`.abi` (largest residual 0.0, failing increment NaN: nothing iterates).
     """
     n = q0.shape[0]
-    m = gamma.shape[0]
+    m = drift.shape[0]
     qk = q0.copy()
     q_lost = np.zeros(n)
     turns = np.zeros(n)
@@ -92,7 +97,9 @@ def explicit_loop(
         tk1 = t0 + (k + 1) * h
         finite = True
         for i in range(m):
-            eta = gamma[i] * h
+            eta = drift[i] * h
+            before = kick_before[i] * h
+            after = kick_after[i] * h
             tau = t0 + (k + nodes[i]) * h
             if time_dependent is not None:
                 # a(tau_i) before the drift; L_q(tau_{i-1}, q) is the last sub-step's
@@ -104,10 +111,10 @@ def explicit_loop(
                     p_before[a] = pk[a]
                     lost_before[a] = q_lost[a]
                     turns_before[a] = turns[a]
-                    rhs[a] = pk[a] + 0.5 * eta * lq[a] - 0.5 * (a0[a] + a1[a])
+                    rhs[a] = pk[a] + before * lq[a] - 0.5 * (a0[a] + a1[a])
             else:
                 for a in range(n):
-                    rhs[a] = pk[a] + 0.5 * eta * lq[a] - 0.5 * (a0[a] + a1[a])
+                    rhs[a] = pk[a] + before * lq[a] - 0.5 * (a0[a] + a1[a])
             # q += eta M^{-1} rhs, written out here: an inlined helper taking these arrays
             # costs an atomic reference count increment and decrement per array and call,
             # a large share of a step this short
@@ -133,7 +140,7 @@ def explicit_loop(
                 wrap_angles(qk, q_lost, turns, periodic)
             point_gradient(fn, tau, qk, zero, prm, lq_next, a1)
             for a in range(n):
-                pk[a] += 0.5 * eta * (lq[a] + lq_next[a])
+                pk[a] += before * lq[a] + after * lq_next[a]
                 lq[a] = lq_next[a]
                 if time_dependent is not None:
                     a0[a] = a1[a]  # autonomous: a is constant

@@ -1,24 +1,25 @@
-r"""The explicit loop with its tangent map: variations along compositions of Störmer–Verlet.
+r"""The explicit loop with its tangent map: variations along compositions of Störmer–Verlet
+and splittings.
 
 The states are those of :func:`.explicit.explicit_loop` bit for bit (the same
 operations in the same order, the same first-same-as-last forces). A sub-step
-of length :math:`\eta = \gamma_i h` from :math:`(\tau_{i-1}, q, p)` to
-:math:`(\tau_i, q', p')`,
+with drift :math:`\eta = a_i h` and kicks :math:`\beta^\pm = \beta^\pm_i h` from
+:math:`(\tau_{i-1}, q, p)` to :math:`(\tau_i, q', p')`,
 
 .. math::
 
-    \bar p = p + \tfrac\eta2 L_q(\tau_{i-1}, q),\quad
+    \bar p = p + \beta^- L_q(\tau_{i-1}, q),\quad
     q' = q + \eta M^{-1}(\bar p - \bar a),\quad
-    p' = \bar p + \tfrac\eta2 L_q(\tau_i, q'),
+    p' = \bar p + \beta^+ L_q(\tau_i, q'),
 
 with :math:`\bar a = \tfrac12(a(\tau_{i-1}) + a(\tau_i))`, is differentiated
 exactly: a variation :math:`(\delta q, \delta p, \delta\theta)` goes to
 
 .. math::
 
-    \delta\bar p = \delta p + \tfrac\eta2 \big(H\,\delta q + L_{q\theta}\,\delta\theta\big),\quad
+    \delta\bar p = \delta p + \beta^- \big(H\,\delta q + L_{q\theta}\,\delta\theta\big),\quad
     \delta q' = \delta q + \eta M^{-1}\big(\delta\bar p - \bar a_\theta\,\delta\theta\big),\quad
-    \delta p' = \delta\bar p + \tfrac\eta2 \big(H'\delta q' + L'_{q\theta}\,\delta\theta\big),
+    \delta p' = \delta\bar p + \beta^+ \big(H'\delta q' + L'_{q\theta}\,\delta\theta\big),
 
 with :math:`H = L_{qq} + f_q` at the sub-step's start, :math:`H'` at its end
 (each point's Hessian serves the two sub-steps that meet there) and
@@ -62,7 +63,9 @@ def explicit_tangent_loop(
     prm,
     Minv,
     Minv_diagonal,
-    gamma,
+    drift,
+    kick_before,
+    kick_after,
     nodes,
     T,
     S,
@@ -78,7 +81,7 @@ def explicit_tangent_loop(
     growth_out,
     megno_out,
 ):
-    r"""Run ``n_steps`` steps of the composition ``gamma`` of Störmer–Verlet with its tangent map.
+    r"""Run ``n_steps`` steps of a composition or splitting with its tangent map.
 
     ``fn`` the point functions' addresses (slots gradient and Hessian), ``fnp``
     the parameter derivatives' (slot gradient, flat ``a P + j``; unread without
@@ -87,13 +90,14 @@ def explicit_tangent_loop(
     segment arguments of :func:`.explicit.explicit_loop`, ``Minv`` the dense
     :math:`M^{-1}`, ``Minv_diagonal`` its diagonal when :math:`M` is diagonal (n
     products per column, as the explicit loop's diagonal variant), else empty;
-    ``gamma`` and ``nodes`` the sub-steps; ``T`` (2n, r), ``S``
+    ``drift``, ``kick_before``, ``kick_after`` and ``nodes`` the sub-steps (as in
+    :func:`.explicit.explicit_loop`); ``T`` (2n, r), ``S``
     (2n, P), ``renormalize_every``, ``t_origin``, ``megno`` and the outputs
     ``T_out``, ``S_out``, ``growth_out``, ``megno_out`` as in
     :func:`.tangent.tangent_loop`. Returns the 5-tuple of :mod:`.abi`.
     """
     n = q0.shape[0]
-    m = gamma.shape[0]
+    m = drift.shape[0]
     n_dir = T.shape[1]
     n_theta = S.shape[1]
     nnz = block_size(n, pattern)
@@ -148,7 +152,9 @@ def explicit_tangent_loop(
         T_before[:, :] = T
         S_before[:, :] = S
         for i in range(m):
-            eta = gamma[i] * h
+            eta = drift[i] * h
+            before = kick_before[i] * h
+            after = kick_after[i] * h
             tau = t0 + (k + nodes[i]) * h
             if time_dependent:
                 point_gradient(fn, tau, qk, zero, prm, lq_next, a1)
@@ -159,7 +165,7 @@ def explicit_tangent_loop(
                     lost_before[a] = q_lost[a]
                     turns_before[a] = turns[a]
             for a in range(n):
-                rhs[a] = pk[a] + 0.5 * eta * lq[a] - 0.5 * (a0[a] + a1[a])
+                rhs[a] = pk[a] + before * lq[a] - 0.5 * (a0[a] + a1[a])
             for a in range(n):
                 if diagonal:
                     acc = Minv_diagonal[a] * rhs[a]
@@ -209,7 +215,7 @@ def explicit_tangent_loop(
                     force = g[a]
                     if theta >= 0:
                         force += TQ0[a * n_theta + theta]
-                    half[a] = dp[a] + 0.5 * eta * force
+                    half[a] = dp[a] + before * force
                     dp[a] = half[a]  # the drift's right-hand side from here on
                     if theta >= 0:
                         dp[a] -= 0.5 * (TV0[a * n_theta + theta] + TV1[a * n_theta + theta])
@@ -237,12 +243,12 @@ def explicit_tangent_loop(
                         force += TQ1[a * n_theta + theta]
                     if theta < 0:
                         T[a, j] = dq[a]
-                        T[n + a, j] = half[a] + 0.5 * eta * force
+                        T[n + a, j] = half[a] + after * force
                     else:
                         S[a, theta] = dq[a]
-                        S[n + a, theta] = half[a] + 0.5 * eta * force
+                        S[n + a, theta] = half[a] + after * force
             for a in range(n):
-                pk[a] += 0.5 * eta * (lq[a] + lq_next[a])
+                pk[a] += before * lq[a] + after * lq_next[a]
                 lq[a] = lq_next[a]
                 if time_dependent:
                     a0[a] = a1[a]

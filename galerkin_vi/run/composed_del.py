@@ -30,22 +30,24 @@ _MAXITER = 30
 
 
 def composition_map(
-    system, gamma: NDArray, nodes: NDArray, t0: float, h: float, q: NDArray, p: NDArray,
-    prm: NDArray, tangent: bool = False,
+    system, tables: tuple, t0: float, h: float, q: NDArray, p: NDArray, prm: NDArray,
+    tangent: bool = False,
 ) -> tuple[NDArray, NDArray, NDArray | None, NDArray | None]:  # fmt: skip
     r"""One step :math:`(q, p) \mapsto (q', p')` of the composition, and optionally
     :math:`\partial q'/\partial p` and :math:`\partial p'/\partial p`.
 
-    Each sub-step of length :math:`\eta = \gamma_i h` (force :math:`F = L_q + f`,
+    ``tables`` are the sub-steps ``(drift, kick_before, kick_after, nodes)``
+    (:func:`.segment.substeps`). Each sub-step with drift :math:`\eta = a_i h` and
+    kicks :math:`\beta^\pm = \beta^\pm_i h` (force :math:`F = L_q + f`,
     :math:`K = \partial F/\partial q`, :math:`a(t) = L_v(t, q, 0)`):
 
     .. math::
 
-        v = M^{-1}\big(p + \tfrac\eta2 F_0 - \tfrac12(a_0 + a_1)\big),\ q' = q + \eta v,\
-        p' = p + \tfrac\eta2 (F_0 + F_1),
+        v = M^{-1}\big(p + \beta^- F_0 - \tfrac12(a_0 + a_1)\big),\ q' = q + \eta v,\
+        p' = p + \beta^- F_0 + \beta^+ F_1,
 
-        \delta q' = \delta q + \eta M^{-1}\big(\delta p + \tfrac\eta2 K_0\,\delta q\big),\
-        \delta p' = \delta p + \tfrac\eta2 (K_0\,\delta q + K_1\,\delta q').
+        \delta q' = \delta q + \eta M^{-1}\big(\delta p + \beta^- K_0\,\delta q\big),\
+        \delta p' = \delta p + \beta^- K_0\,\delta q + \beta^+ K_1\,\delta q'.
     """
     n = system.n
     zero = np.zeros(n)
@@ -65,17 +67,17 @@ def composition_map(
     start = t0
     f0, a0 = force(start, q)
     k0 = stiffness(start, q) if tangent else None
-    for eta_fraction, end_fraction in zip(gamma, nodes, strict=True):
-        eta = eta_fraction * h
+    for drift, kick_before, kick_after, end_fraction in zip(*tables, strict=True):
+        eta, before, after = drift * h, kick_before * h, kick_after * h
         end = t0 + end_fraction * h
         _, a1 = force(end, q)
-        q = q + eta * (inverse @ (p + 0.5 * eta * f0 - 0.5 * (a0 + a1)))
+        q = q + eta * (inverse @ (p + before * f0 - 0.5 * (a0 + a1)))
         f1, a1 = force(end, q)
-        p = p + 0.5 * eta * (f0 + f1)
+        p = p + before * f0 + after * f1
         if tangent:
             k1 = stiffness(end, q)
-            dq_next = dq + eta * (inverse @ (dp + 0.5 * eta * (k0 @ dq)))
-            dp = dp + 0.5 * eta * (k0 @ dq + k1 @ dq_next)
+            dq_next = dq + eta * (inverse @ (dp + before * (k0 @ dq)))
+            dp = dp + before * (k0 @ dq) + after * (k1 @ dq_next)
             dq, k0 = dq_next, k1
         f0, a0 = f1, a1
     return q, p, dq, dp
@@ -90,19 +92,19 @@ def composition_del_step(integrator, q0, q1, h: float, t0: float, prm: NDArray) 
     q0, q1 = state_vector("q0", q0, n), state_vector("q1", q1, n)
     h = step_size(h)
     t0 = float(t0)
-    gamma, nodes = substeps(integrator.method)
+    tables = substeps(integrator.method)
     prm_map = dict(zip(system.params, prm, strict=True))
     p0 = system.legendre(q0, (q1 - q0) / h, t0, prm_map)
     scale = max(1.0, float(np.max(np.abs(q1))))
     for _ in range(_MAXITER):
-        q_end, p_end, dq, _ = composition_map(system, gamma, nodes, t0, h, q0, p0, prm, True)
+        q_end, p_end, dq, _ = composition_map(system, tables, t0, h, q0, p0, prm, True)
         residual = q_end - q1
         if np.max(np.abs(residual)) <= 4 * np.finfo(float).eps * scale:
             break
         step = np.linalg.solve(dq, residual)
         p0 = p0 - step
         if np.max(np.abs(step)) <= 4 * np.finfo(float).eps * max(1.0, float(np.max(np.abs(p0)))):
-            q_end, p_end, _, _ = composition_map(system, gamma, nodes, t0, h, q0, p0, prm)
+            q_end, p_end, _, _ = composition_map(system, tables, t0, h, q0, p0, prm)
             break
     else:
         raise ConvergenceError(
@@ -110,5 +112,5 @@ def composition_del_step(integrator, q0, q1, h: float, t0: float, prm: NDArray) 
             f"{_MAXITER} iterations (residual {np.max(np.abs(residual)):.3g}); try a smaller h",
             step=0, t=t0, residual=float(np.max(np.abs(residual))),
         )  # fmt: skip
-    q2, _, _, _ = composition_map(system, gamma, nodes, t0 + h, h, q1, p_end, prm)
+    q2, _, _, _ = composition_map(system, tables, t0 + h, h, q1, p_end, prm)
     return q2

@@ -6,7 +6,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from ..method.composition import Composition
+from ..method.composition import VERLET_SCHEMES, Composition
 from ..method.galerkin import Galerkin
 from ..method.stage_form import has_stage_form
 from ..method.velocity_stages import MIN_FIXED_POINT_DEGREE, has_velocity_stages
@@ -16,7 +16,9 @@ __all__ = [
     "EARLY_HAND_OVER",
     "PERSISTENT",
     "HandOver",
+    "composition_for",
     "composition_obstacle",
+    "gyroscopic_term_varies",
     "hand_over",
     "loop_path",
 ]
@@ -77,12 +79,17 @@ def hand_over(fixed_point: bool | str) -> HandOver:
     raise ValueError(f"fixed_point must be True, False or 'persistent', got {fixed_point!r}")
 
 
-def composition_obstacle(system: LagrangianSystem) -> str | None:
-    r"""Why a :class:`~galerkin_vi.Composition` of Störmer–Verlet cannot run on ``system``,
-    or None when it can.
+def composition_obstacle(
+    system: LagrangianSystem, method: Composition | None = None
+) -> str | None:
+    r"""Why a :class:`~galerkin_vi.Composition` (``method``, or any) cannot run on
+    ``system``, or None when it can.
 
     The sub-steps are explicit only for :math:`L = \tfrac12 v^TMv + a(t)\cdot v - V(t, q)`
     with constant :math:`M` and forces :math:`f(t, q)`, without constraints or contacts.
+    A splitting (``method.splitting``) also needs :math:`a` constant in time: its drifts
+    must be exact flows, and the sub-step integrates :math:`\int a\,dt` by the
+    trapezoidal rule (:mod:`galerkin_vi.method.composition`).
     """
     structure = system.structure
     if system.m:
@@ -95,7 +102,29 @@ def composition_obstacle(system: LagrangianSystem) -> str | None:
         return "L couples positions and velocities (d2L/dq dv is not zero)"
     if not structure.zero_fv:
         return "its forces depend on the velocities"
+    if method is not None and method.splitting and gyroscopic_term_varies(system):
+        return (
+            "its term a(t).v linear in the velocities varies with t, and a splitting's "
+            "drifts are exact flows only for a constant a"
+        )
     return None
+
+
+def gyroscopic_term_varies(system: LagrangianSystem) -> bool:
+    r"""Whether :math:`a(t) = L_v(t, q, 0)` depends on :math:`t`."""
+    if system.structure.autonomous or system.t is None:
+        return False
+    at_rest = dict.fromkeys(system.v, 0)
+    return any(system.t in e.subs(at_rest).free_symbols for e in system.pieces.Lv)
+
+
+def composition_for(system: LagrangianSystem, order: int) -> Composition:
+    """``Composition(order)``, or where ``system`` refuses its splitting the order's
+    composition of Störmer–Verlet (:data:`~galerkin_vi.method.composition.VERLET_SCHEMES`)."""
+    method = Composition(order)
+    if method.splitting and composition_obstacle(system, method) is not None:
+        return Composition(order, VERLET_SCHEMES[order])
+    return method
 
 
 def loop_path(

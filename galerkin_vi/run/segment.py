@@ -24,7 +24,7 @@ __all__ = ["LoopResult", "run_once", "run_segment", "substeps"]
 
 #: Störmer–Verlet as the one-stage composition (gamma, nodes); writable, as numba types
 #: a read-only array as another compiled variant
-_VERLET = (np.ones(1), np.ones(1))
+_VERLET = (np.ones(1), np.full(1, 0.5), np.full(1, 0.5), np.ones(1))
 #: the sub-steps of each composition run so far (a copy per call would cost a microsecond)
 _COMPOSED: dict = {}
 
@@ -64,12 +64,15 @@ def run_segment(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     return result
 
 
-def substeps(method) -> tuple[np.ndarray, np.ndarray]:
-    r"""The explicit loop's sub-steps of ``method``: :math:`(\gamma_i)` and their ends
-    :math:`(c_i)`; Störmer–Verlet (``Galerkin(1)``) is ``([1.0], [1.0])``."""
+def substeps(method) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    r"""The explicit loop's sub-steps of ``method``: drifts :math:`(a_i)`, kicks
+    :math:`(\beta^-_i)`, :math:`(\beta^+_i)` and ends :math:`(c_i)`
+    (:class:`~galerkin_vi.method.composition.SubSteps`); Störmer–Verlet
+    (``Galerkin(1)``) is ``([1.0], [0.5], [0.5], [1.0])``."""
     if isinstance(method, Composition):
         if method not in _COMPOSED:
-            _COMPOSED[method] = (method.coefficients, method.nodes)  # writable copies
+            # writable copies: the loops are compiled for writable arrays
+            _COMPOSED[method] = tuple(t.copy() for t in method.substeps().loop_tables)
         return _COMPOSED[method]
     return _VERLET
 

@@ -93,7 +93,7 @@ from ..method.galerkin import Galerkin
 from ..method.quadrature import gauss_legendre, gauss_lobatto
 from ..model.system import LagrangianSystem
 from ..reference import resolve_backend
-from ..run.loop_choice import composition_obstacle
+from ..run.loop_choice import composition_for, composition_obstacle
 
 __all__ = ["Candidate", "MethodChoice", "choose_method"]
 
@@ -832,6 +832,11 @@ def choose_method(
     )
     allowed = composition_obstacle(system) is None and resolve_backend(backend) == "numba"
     candidates = _candidate_methods(degrees, families, methods, compositions if allowed else ())
+    if methods is None:  # each order's default, or its Stormer-Verlet composition if refused
+        candidates = [
+            composition_for(system, m.order) if isinstance(m, Composition) else m
+            for m in candidates
+        ]
 
     pilot = _Pilot(system, q0, v0, p0, t0, params, span, backend)
     ref, reference_error = _reference_samples(pilot, reference, candidates)

@@ -38,7 +38,7 @@ from ..method.composition import Composition
 from ..method.galerkin import Galerkin
 from ..method.quadrature import gauss_legendre, gauss_lobatto
 from ..model.system import LagrangianSystem
-from ..run.loop_choice import composition_obstacle
+from ..run.loop_choice import composition_for, composition_obstacle
 from .verification import OrderResult, measure_order
 
 __all__ = [
@@ -307,7 +307,7 @@ def verify(
         if composition_obstacle(problem.system) is not None:
             continue  # compositions need a separable L with constant mass
         for order in compositions:
-            method = Composition(order)
+            method = composition_for(problem.system, order)
             if progress is not None:
                 progress(f"{name} {method!r}")
             label = f"composition {method.scheme}"
