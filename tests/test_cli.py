@@ -200,3 +200,24 @@ def test_the_study_count_in_the_ci_how_to_is_the_tools():
     args = cli.build_parser().parse_args(["verify"])
     count = cli.study_count(cli._selected(args), args.degrees, args.families)
     assert f"only): {count} studies" in page.read_text()
+
+
+def test_verify_studies_the_splittings_in_mpmath_where_their_order_shows(capsys):
+    # Blanes-Moan's order 4 looks like order 3.4 on Kepler in float64 (its h^4 term is
+    # small by design); at the mpmath step counts of its order it measures 4
+    status = cli.main(
+        ["verify", "--problems", "kepler", "--degrees", "1", "--families", "lobatto",
+         "--compositions", "4", "6"]
+    )  # fmt: skip
+    out = capsys.readouterr().out
+    assert status == 0, out
+    assert out.count("blanes_moan") == 2 and "0 of 3 studies fail" in out
+    kepler = report.PROBLEMS["kepler"]
+    rows = report.verify(
+        [("kepler", kepler.factory(), kepler.mp_step_counts)], [1], ["lobatto"],
+        compositions=(4,),
+    )  # fmt: skip
+    splitting = rows[-1]
+    assert splitting.precision.startswith("mpmath")
+    assert splitting.step_counts == list(report.MP_SPLITTING_COUNTS[4])
+    assert abs(splitting.measured - 4) < 0.1

@@ -69,7 +69,9 @@ rounded to double once. The splittings of [BM02]_ are published with 15 digits (
 free coefficients of its Table 3, transcribed identically by Principia's
 ``symplectic_runge_kutta_nyström_integrator.hpp`` and other public codes); the one
 drift and the one kick that follow from :math:`\sum a_i = \sum b_i = 1` are computed
-at 40 digits, so the order conditions hold to about 1e-15, below double round-off.
+at 40 digits, so the order conditions hold to about 1e-15: below double round-off,
+but in mpmath SRKN11b's errors follow :math:`h^6` only down to about 1e-18, where
+the :math:`h^4` term of the rounded coefficients takes over.
 
 References
 ----------

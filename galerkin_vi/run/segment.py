@@ -22,7 +22,7 @@ from .trajectory import Trajectory
 
 __all__ = ["LoopResult", "run_once", "run_segment", "substeps"]
 
-#: Störmer–Verlet as the one-stage composition (gamma, nodes); writable, as numba types
+#: Störmer–Verlet as the one-stage composition (drift, kicks, nodes); writable, as numba types
 #: a read-only array as another compiled variant
 _VERLET = (np.ones(1), np.full(1, 0.5), np.full(1, 0.5), np.ones(1))
 #: the sub-steps of each composition run so far (a copy per call would cost a microsecond)
