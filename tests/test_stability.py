@@ -291,3 +291,22 @@ def test_benchmark_quick_run_writes_its_outputs(tmp_path):
     assert stability.main(["--quick", "--output", str(tmp_path)]) == 0
     for name in ("stability.json", "stability.md", "stability_trace.png"):
         assert (tmp_path / name).stat().st_size > 0
+
+
+@pytest.mark.parametrize("n", [2, 40], ids=["floats", "arrays"])
+def test_the_growth_bound_of_one_run_against_its_definition(n):
+    # within: no state exceeds EXPLOSIVE_GROWTH times the first's size (at least 1);
+    # NaN and inf anywhere are never within
+    from galerkin_vi.run.trust import EXPLOSIVE_GROWTH, within_growth_bound
+
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        q_first, p_first = rng.standard_normal((2, 1, n)) * 10.0 ** rng.integers(-3, 3)
+        q, p = rng.standard_normal((2, 2, n)) * 10.0 ** rng.integers(-2, 6)
+        if rng.random() < 0.2:
+            (q, p)[rng.integers(2)].flat[rng.integers(2 * n)] = rng.choice([np.nan, np.inf])
+        start = max(1.0, np.abs(q_first).max(), np.abs(p_first).max())
+        with np.errstate(invalid="ignore"):
+            top = np.abs(np.concatenate([q, p])).max()
+        expected = bool(np.isfinite(top) and top <= EXPLOSIVE_GROWTH * start)
+        assert within_growth_bound(q_first, p_first, q, p) == expected

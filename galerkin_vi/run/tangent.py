@@ -110,6 +110,9 @@ class VariationRequest:
 
 def variation_request(system, tangent, sensitivity, renormalize_every) -> VariationRequest | None:
     """Check the run options of the tangent map; None when none is asked for."""
+    plain = renormalize_every is None or (type(renormalize_every) is int and renormalize_every == 0)
+    if plain and (tangent is None or tangent is False) and sensitivity is None:
+        return None  # the common case, checked first: every run pays for this call
     n = system.n
     if renormalize_every is None:
         renormalize_every = 0
