@@ -290,3 +290,33 @@ def test_quarter_powers_of_one_base_share_one_root():
         want = float(original.subs(point))
         got = float(new.subs(point).subs(rho, root))
         assert abs(got - want) <= 8 * abs(want) * 2.0**-52
+
+
+def test_negative_powers_of_a_root_share_one_reciprocal_and_square_roots_are_squares():
+    # the transformed Lagrangian divides by several powers of one root: one division,
+    # the others products; sqrt(b) of a base with a quarter root is that root squared
+    import math
+
+    from galerkin_vi.codegen.source import shared_quarter_roots, shared_reciprocals
+
+    x, y, vx = sp.symbols("x y vx", real=True)
+    b = x**2 + y**2
+    exprs = [
+        vx / b ** sp.Rational(3, 2) + b ** sp.Rational(3, 4),
+        3 / b ** sp.Rational(7, 4) - vx / sp.sqrt(b),
+        b ** sp.Rational(-1, 4) * vx**2,
+    ]
+    rewritten, roots = shared_quarter_roots(exprs)
+    rewritten, reciprocals = shared_reciprocals(rewritten, roots)
+    (rho, _), (iota, of) = roots[0], reciprocals[0]
+    assert len(roots) == len(reciprocals) == 1 and of == rho
+    for e in rewritten:
+        assert not e.has(sp.sqrt(b)) and not any(
+            p.exp.is_negative for p in e.atoms(sp.Pow) if p.base in (rho, b)
+        )
+    point = {x: 0.3, y: -1.7, vx: 2.5}
+    root = math.sqrt(math.sqrt(0.3**2 + 1.7**2))
+    for original, new in zip(exprs, rewritten, strict=True):
+        want = float(original.subs(point))
+        got = float(new.subs(point).subs({rho: root, iota: 1.0 / root}))
+        assert abs(got - want) <= 32 * abs(want) * 2.0**-52

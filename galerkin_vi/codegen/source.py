@@ -86,7 +86,42 @@ def shared_quarter_roots(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[tupl
         return bool(z.is_Pow and z.exp.is_Rational and z.exp.q == 4)
 
     rewritten = [e.replace(quarter, lambda z: root(z.base) ** z.exp.p) for e in exprs]
+    if roots:
+        # the square roots of a base with a quarter root are its squares: b^(k/2) = rho^(2k)
+        def half(z: sp.Basic) -> bool:
+            return bool(z.is_Pow and z.exp.is_Rational and z.exp.q == 2 and z.base in roots)
+
+        rewritten = [e.replace(half, lambda z: roots[z.base] ** (2 * z.exp.p)) for e in rewritten]
     return rewritten, [(symbol, base) for base, symbol in roots.items()]
+
+
+def shared_reciprocals(
+    exprs: list[sp.Expr], roots: list[tuple]
+) -> tuple[list[sp.Expr], list[tuple]]:
+    r"""Rewrite every :math:`\rho^{-k}` of a root :math:`\rho` as :math:`\iota^{k}`,
+    one reciprocal :math:`\iota = 1/\rho`.
+
+    The transformed Lagrangian's derivatives divide by several powers of one root
+    (:math:`\rho^{-1}, \rho^{-2}, \rho^{-6}, \dots`): a division each (4-20 times
+    a multiplication), which numba does not merge without fast-math. With one
+    reciprocal the others are products. Returns the rewritten expressions and the
+    ``(symbol, root)`` pairs, computed after the roots.
+    """
+    reciprocals: dict[sp.Symbol, sp.Symbol] = {}
+    symbols = {symbol for symbol, _ in roots}
+
+    def inverse(z: sp.Basic) -> bool:
+        return bool(
+            z.is_Pow and z.base in symbols and z.exp.is_Integer and z.exp.is_negative
+        )
+
+    def rewrite(z: sp.Pow) -> sp.Expr:
+        if z.base not in reciprocals:
+            reciprocals[z.base] = sp.Symbol(f"_i{str(z.base)[2:]}", positive=True)
+        return reciprocals[z.base] ** (-z.exp)
+
+    rewritten = [e.replace(inverse, rewrite) for e in exprs]
+    return rewritten, [(symbol, base) for base, symbol in reciprocals.items()]
 
 
 def _function_body(
@@ -102,6 +137,7 @@ def _function_body(
     printer = KernelPrinter(ordered=small)
     exprs = [e for _, e in entries] + ([returns] if returns is not None else [])
     exprs, roots = shared_quarter_roots(exprs)
+    exprs, reciprocals = shared_reciprocals(exprs, roots)
     temporaries, reduced = sp.cse(
         exprs,
         symbols=sp.numbered_symbols("_x"),
@@ -111,6 +147,7 @@ def _function_body(
     lines = [
         f"    {symbol} = math.sqrt(math.sqrt({printer.doprint(base)}))" for symbol, base in roots
     ]
+    lines += [f"    {symbol} = 1.0 / {root}" for symbol, root in reciprocals]
     for sym, rhs in temporaries:
         lines += _assignment(str(sym), rhs, printer)
     for (slot, _), expr in zip(entries, reduced[: len(entries)], strict=True):

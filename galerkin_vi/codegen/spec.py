@@ -44,7 +44,7 @@ __all__ = [
     "use_banded",
 ]
 
-GENERATOR_VERSION = "9"
+GENERATOR_VERSION = "10"
 
 #: the fewest instances of a term that become a scatter loop (:mod:`.scatter`)
 MIN_REPEATS = 8
