@@ -67,13 +67,17 @@ class _StructuralPickler(pickle.Pickler):
 
 
 def structural_bytes(obj: Any) -> bytes:
-    """Bytes that name ``obj`` by its structure alone, the same in every process.
+    """Bytes that name ``obj`` for a cache key, the same in every process.
 
-    Equal expressions give equal bytes whatever their objects' identities and
-    whatever the state of SymPy's cache; tuples, dicts and arrays of expressions
-    are taken as they are. An object that does not pickle (an expression holding
-    a lambda) is named by ``srepr``. For keys, not for loading: the persistent
-    references are not resolved by :func:`pickle.loads`.
+    Equal SymPy nodes give equal bytes whichever objects they are, so the bytes do
+    not depend on the state of SymPy's cache; tuples, dicts and arrays of
+    expressions are taken as they are. What is inside a node is pickled as it is:
+    equal symbols whose assumptions were given in another order, or whose names are
+    distinct string objects, can still give other bytes. That costs a cache miss,
+    never a wrong hit (unequal expressions never give equal bytes). An object that
+    does not pickle (an expression holding a lambda) is named by ``srepr``. For
+    keys, not for loading: the persistent references are not resolved by
+    :func:`pickle.loads`.
     """
     buffer = io.BytesIO()
     try:

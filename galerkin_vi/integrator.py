@@ -35,9 +35,10 @@ class Integrator:
     system : LagrangianSystem
     method : Galerkin or Composition, optional
         Defaults to ``Galerkin(2)`` (order 4). A :class:`~galerkin_vi.Composition`
-        of Störmer–Verlet (explicit, orders 2–10) needs a separable Lagrangian with
-        constant mass matrix, no constraints, contacts or velocity-dependent
-        forces, and the numba backend.
+        (explicit kick–drift splittings and compositions of Störmer–Verlet, orders
+        2–10) needs a separable Lagrangian with constant mass matrix, no
+        constraints, contacts or velocity-dependent forces, and the numba backend;
+        a splitting also a term :math:`a\cdot v` constant in time.
     backend : {"auto", "numba", "numpy"}
         ``"numba"`` runs the whole time loop in compiled code (the loops
         compiled once per machine, the system's point functions once per system,
@@ -589,7 +590,7 @@ def _check_composition(system: LagrangianSystem, method: Composition, backend: s
     obstacle = composition_obstacle(system)
     if obstacle is not None:
         raise ValueError(
-            f"{method!r} composes explicit Stormer-Verlet steps, which need a separable "
+            f"{method!r} runs explicit kick-drift sub-steps, which need a separable "
             f"L = v.M.v/2 + a(t).v - V(t, q) with constant M: {obstacle}; use a Galerkin method"
         )
     obstacle = composition_obstacle(system, method)

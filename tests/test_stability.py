@@ -310,3 +310,8 @@ def test_the_growth_bound_of_one_run_against_its_definition(n):
             top = np.abs(np.concatenate([q, p])).max()
         expected = bool(np.isfinite(top) and top <= EXPLOSIVE_GROWTH * start)
         assert within_growth_bound(q_first, p_first, q, p) == expected
+    ones = np.ones((1, n))
+    first = ones.copy()
+    first[0, -1] = np.nan  # a start that is not finite is never within either
+    assert not within_growth_bound(first, ones, ones, ones)
+    assert not within_growth_bound(ones, ones, ones, np.where(first == 1, 1, np.nan))

@@ -131,9 +131,9 @@ class BenchConfig:
         galerkin_vi degree and quadrature family (``"lobatto"``: ``gauss_lobatto(s + 1)``,
         ``"gauss"``: ``gauss_legendre(s)``).
     compositions : tuple of int
-        Orders of ``gvi.Composition`` (explicit compositions of Störmer–Verlet, default
-        schemes), run on the problems whose Lagrangian allows them (separable, constant
-        mass); galerkin_vi curves like the others.
+        Orders of ``gvi.Composition`` (explicit splittings and compositions of
+        Störmer–Verlet, default schemes), run on the problems whose Lagrangian allows
+        them (separable, constant mass); galerkin_vi curves like the others.
     handwritten : tuple of str
         ``"verlet"``, ``"gaussS"``, ``"gaussS-simplified"``, ``"gaussS-fixed-point"``,
         ``"lobattoR"``; a problem runs those its case allows (:attr:`Case.hw_allowed`).

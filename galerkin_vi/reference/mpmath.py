@@ -186,8 +186,8 @@ class MpComposition:
 
     The kicks and drifts of :mod:`galerkin_vi.loops.explicit` (:math:`M^{-1}` solved at
     ``dps`` digits), with the composition's coefficients at ``dps`` + 20 digits: the
-    order studies of orders 8 and 10, whose float64 errors above round-off are still
-    pre-asymptotic.
+    order studies of orders 8 and 10 and of the splittings, whose float64 errors above
+    round-off are still pre-asymptotic.
     """
 
     def __init__(self, system: LagrangianSystem, method: Composition, dps: int = 32) -> None:

@@ -1,4 +1,4 @@
-r"""The position-only DEL form of a composition of Störmer–Verlet steps.
+r"""The position-only DEL form of a composition of Störmer–Verlet steps or a splitting.
 
 A composition :math:`\Psi_h` (:class:`~galerkin_vi.Composition`) is variational:
 its discrete Lagrangian :math:`L_d(q_0, q_1)` is the sum of its sub-steps' with the

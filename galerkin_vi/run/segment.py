@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import DegenerateLagrangianError
 from ..loops.abi import LoopResult
-from ..method.composition import Composition
+from ..method.composition import VERLET_SUBSTEPS, Composition
 from ..reference import numpy as numpy_backend
 from ..reference import numpy_constrained
 from .outputs import RunOutputs
@@ -24,7 +24,7 @@ __all__ = ["LoopResult", "run_once", "run_segment", "substeps"]
 
 #: Störmer–Verlet as the one-stage composition (drift, kicks, nodes); writable, as numba types
 #: a read-only array as another compiled variant
-_VERLET = (np.ones(1), np.full(1, 0.5), np.full(1, 0.5), np.ones(1))
+_VERLET = tuple(table.copy() for table in VERLET_SUBSTEPS.loop_tables)
 #: the sub-steps of each composition run so far (a copy per call would cost a microsecond)
 _COMPOSED: dict = {}
 

@@ -107,12 +107,14 @@ def _one_run_within(q_first, p_first, q, p) -> bool:
 
     Small states go through Python floats (1 us against 5 us for the ufunc
     reductions); a NaN or an inf makes the sum of the sizes not finite, so the
-    answer is False whatever ``max`` makes of the NaN.
+    answer is False whatever ``max`` makes of the NaN (as it is for states so large
+    that their sum overflows: the caller then looks row by row).
     """
     if q.size + p.size > 64:
-        start = max(1.0, float(np.abs(q_first).max()), float(np.abs(p_first).max()))
-        # np.maximum, not max: a NaN in p is kept
-        return bool(np.maximum(np.abs(q).max(), np.abs(p).max()) <= EXPLOSIVE_GROWTH * start)
+        # np.maximum, not max: a NaN is kept (and never within)
+        start = float(np.maximum(np.abs(q_first).max(), np.abs(p_first).max()))
+        top = np.maximum(np.abs(q).max(), np.abs(p).max())
+        return bool(math.isfinite(start) and top <= EXPLOSIVE_GROWTH * max(1.0, start))
     first = [abs(x) for x in q_first.ravel().tolist() + p_first.ravel().tolist()]
     rest = [abs(x) for x in q.ravel().tolist() + p.ravel().tolist()]
     if not math.isfinite(sum(first) + sum(rest)):

@@ -763,8 +763,9 @@ def choose_method(
     methods : sequence of Galerkin or Composition, optional
         Explicit candidates instead of ``degrees`` × ``families`` (and ``compositions``).
     compositions : sequence of int
-        Orders of :class:`~galerkin_vi.Composition` (explicit compositions of
-        Störmer–Verlet, default schemes) that join the candidates when the system
+        Orders of :class:`~galerkin_vi.Composition` (explicit splittings and
+        compositions of Störmer–Verlet, default schemes, or the order's composition
+        of Störmer–Verlet where a splitting is refused) that join the candidates when the system
         allows them (separable :math:`L`, constant mass, no constraints, contacts or
         velocity-dependent forces) and the backend is numba; ``()`` for none.
     relative : bool

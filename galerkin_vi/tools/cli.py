@@ -299,8 +299,9 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         metavar="ORDER",
         help=(
-            "also study Composition(ORDER) (explicit compositions of Stormer-Verlet, default "
-            "schemes) on the problems with a separable L and constant mass: e.g. 4 6 8 10"
+            "also study Composition(ORDER) (explicit splittings and compositions of "
+            "Stormer-Verlet, default schemes; splittings in mpmath) on the problems with a "
+            "separable L and constant mass: e.g. 4 6 8 10"
         ),
     )
     verify.add_argument(
