@@ -44,6 +44,10 @@ RUNS = {
         "max joint residual",
     ),
     "die_on_table.py": (["--seconds", "0.5", "--output", str(SMOKE_OUTPUT)], "impacts; the first"),
+    "explicit_splittings.py": (
+        ["--t-final", "20", "--output", str(SMOKE_OUTPUT)],
+        "max |energy error|",
+    ),
 }
 
 
