@@ -11,13 +11,13 @@ import sympy as sp
 from numpy.typing import ArrayLike, NDArray
 
 from . import codegen
-from .method.composition import VERLET_SCHEMES, Composition
+from .method.composition import Composition
 from .method.galerkin import Galerkin
 from .model.system import LagrangianSystem
 from .reference import resolve_backend
 from .run.del_step import del_step
 from .run.ensemble import integrate_many
-from .run.loop_choice import composition_obstacle, hand_over, loop_path
+from .run.loop_choice import check_composition, hand_over, loop_path
 from .run.smooth import integrate_smooth
 from .run.spec import RunSpec, compiled_run_spec, loop_traits, reference_run_spec
 from .run.stream import check_stream_arguments, stream_chunks
@@ -106,7 +106,7 @@ class Integrator:
         ):
             raise ValueError(f"maxiter must be an int in [1, 255], got {maxiter!r}")
         if isinstance(method, Composition):
-            _check_composition(system, method, resolve_backend(backend))
+            check_composition(system, method, resolve_backend(backend))
         elif system.m and not method.collocated:
             raise ValueError(
                 f"{method!r}: a constrained system needs collocated control and quadrature "
@@ -584,24 +584,3 @@ class Integrator:
             system, self.method.tables, q0, q1, h, t0, prm, tol=self.tol, maxiter=self.maxiter
         )
 
-
-def _check_composition(system: LagrangianSystem, method: Composition, backend: str) -> None:
-    """ValueError when ``method`` cannot run on ``system`` with ``backend``."""
-    obstacle = composition_obstacle(system)
-    if obstacle is not None:
-        raise ValueError(
-            f"{method!r} runs explicit kick-drift sub-steps, which need a separable "
-            f"L = v.M.v/2 + a(t).v - V(t, q) with constant M: {obstacle}; use a Galerkin method"
-        )
-    obstacle = composition_obstacle(system, method)
-    if obstacle is not None:
-        other = Composition(method.order, VERLET_SCHEMES[method.order])
-        raise ValueError(
-            f"{method!r} is a splitting with free kicks: {obstacle}; use {other!r} "
-            "(a composition of Stormer-Verlet steps) or a Galerkin method"
-        )
-    if backend != "numba":
-        raise ValueError(
-            f"{method!r} runs in the compiled explicit loop only: backend must be 'numba' "
-            f"(or 'auto' with numba installed), got {backend!r}"
-        )

@@ -18,6 +18,7 @@ __all__ = [
     "EARLY_HAND_OVER",
     "PERSISTENT",
     "HandOver",
+    "check_composition",
     "composition_for",
     "composition_obstacle",
     "gyroscopic_term_varies",
@@ -111,6 +112,29 @@ def composition_obstacle(
         )
     return None
 
+
+def check_composition(system: LagrangianSystem, method: Composition, backend: str) -> None:
+    """ValueError naming why ``method`` cannot run on ``system`` with ``backend``
+    (:func:`composition_obstacle`; splittings name the composition of Störmer–Verlet
+    that can)."""
+    obstacle = composition_obstacle(system)
+    if obstacle is not None:
+        raise ValueError(
+            f"{method!r} runs explicit kick-drift sub-steps, which need a separable "
+            f"L = v.M.v/2 + a(t).v - V(t, q) with constant M: {obstacle}; use a Galerkin method"
+        )
+    obstacle = composition_obstacle(system, method)
+    if obstacle is not None:
+        other = Composition(method.order, VERLET_SCHEMES[method.order])
+        raise ValueError(
+            f"{method!r} is a splitting with free kicks: {obstacle}; use {other!r} "
+            "(a composition of Stormer-Verlet steps) or a Galerkin method"
+        )
+    if backend != "numba":
+        raise ValueError(
+            f"{method!r} runs in the compiled explicit loop only: backend must be 'numba' "
+            f"(or 'auto' with numba installed), got {backend!r}"
+        )
 
 def gyroscopic_term_varies(system: LagrangianSystem) -> bool:
     r"""Whether :math:`a(t) = L_v(t, q, 0)` depends on :math:`t`."""
