@@ -72,6 +72,7 @@ def _c_signatures() -> dict:
         "point_constraint_rate": types.void(double, *(ptr,) * 3),
         "point_constraint_hessian": types.void(double, *(ptr,) * 4),
         "point_mass": types.void(double, *(ptr,) * 7),
+        "point_velocity": types.void(double, *(ptr,) * 5),
     }
 
 

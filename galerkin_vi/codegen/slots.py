@@ -22,4 +22,5 @@ POINT_SLOTS = {
     "point_constraint_rate": 5,
     "point_constraint_hessian": 6,
     "point_mass": 7,
+    "point_velocity": 8,
 }

@@ -40,6 +40,7 @@ FUNCTIONS = {
     "point_constraint_rate": "t, q, prm, gt",
     "point_constraint_hessian": "t, q, lam, prm, Hg",
     "point_mass": "t, q, v, prm, Lq, Lv, Lqv, Lvv",
+    "point_velocity": "t, q, p, prm, F, V",
 }
 
 # numba's compile time grows faster than linearly with a function's length: large
@@ -396,6 +397,9 @@ def render_module(spec: KernelSpec, key: str) -> str:
         _point_function("lagrangian", [], large, returns=spec.lagrangian, spec=spec),
         _point_function("point_mass", list(spec.mass_entries), large, spec=spec),
     ]
+    if spec.velocity_entries:
+        # straight-line code (no scatter loops: systems with repeated terms have none)
+        functions.append(_point_function("point_velocity", list(spec.velocity_entries), large))
     tables = [
         _table_literal(f"{group.name}_{what}", array)
         for group in spec.repeats

@@ -44,7 +44,7 @@ __all__ = [
     "use_banded",
 ]
 
-GENERATOR_VERSION = "10"
+GENERATOR_VERSION = "11"
 
 #: the fewest instances of a term that become a scatter loop (:mod:`.scatter`)
 MIN_REPEATS = 8
@@ -74,6 +74,7 @@ class KernelSpec:
     gradient_entries: tuple[tuple[str, sp.Expr], ...]
     hessian_entries: tuple[tuple[str, sp.Expr], ...]
     mass_entries: tuple[tuple[str, sp.Expr], ...] = ()
+    velocity_entries: tuple[tuple[str, sp.Expr], ...] = ()
     pattern: tuple[tuple[int, int], ...] = ()
     half_bandwidth: int = 0
     banded: bool = False
@@ -124,6 +125,7 @@ class SpecSummary:
     pattern: tuple[tuple[int, int], ...]
     periodic: tuple[bool, ...]
     diagonal_mass: bool
+    explicit_velocity: bool = False
 
 
 def summarize(spec: KernelSpec, key: str) -> SpecSummary:
@@ -140,6 +142,7 @@ def summarize(spec: KernelSpec, key: str) -> SpecSummary:
         pattern=tuple((int(a), int(b)) for a, b in spec.pattern),
         periodic=tuple(bool(x) for x in spec.periodic),
         diagonal_mass=bool(spec.diagonal_mass),
+        explicit_velocity=bool(spec.velocity_entries),
     )
 
 
@@ -232,6 +235,7 @@ def kernel_spec(system: LagrangianSystem, repeats: bool = True) -> KernelSpec:
         gradient_entries=tuple(gradient),
         hessian_entries=tuple(hessian),
         mass_entries=tuple(mass),
+        velocity_entries=() if groups else _velocity_entries(system, rename),
         pattern=pattern if banded else (),
         half_bandwidth=half_bandwidth,
         banded=banded,
@@ -243,6 +247,61 @@ def kernel_spec(system: LagrangianSystem, repeats: bool = True) -> KernelSpec:
         repeats=groups,
         **_constraint_entries(system, rename),
     )
+
+
+#: the largest system whose velocities are solved from a full (not diagonal) mass
+#: matrix in closed form: the adjugate of a 2 x 2 matrix is two products
+EXPLICIT_FULL_MASS = 2
+
+
+def _velocity_entries(system: LagrangianSystem, rename: dict) -> tuple[tuple[str, sp.Expr], ...]:
+    r"""Entries of ``point_velocity``: the velocity and the force at given momenta.
+
+    For :math:`L = \tfrac12 v^TM(t, q)v + a(t, q)\cdot v - U(t, q)` the momentum
+    equation :math:`p = L_v = M v + a` has the solution
+
+    .. math::
+
+        v(t, q, p) = M(t, q)^{-1}\big(p - a(t, q)\big),
+
+    in closed form when :math:`M` is diagonal (any size) or has at most
+    :data:`EXPLICIT_FULL_MASS` rows (by the adjugate). ``V[a]`` is :math:`v_a`
+    and ``F[a]`` is :math:`(L_q + f)(t, q, v(t, q, p))`, with the momenta read
+    from ``p[a]``: one call gives a Gauss stage both its velocity and its force,
+    the sweep of Hamilton's equations that the varying-mass loop then runs
+    (:mod:`galerkin_vi.loops.varying_mass`). Empty when the solution is not in
+    closed form (L not quadratic in v, constraints, a full M of more rows) or
+    when that loop does not run the system (constant mass and forces
+    independent of v, or linear stage equations).
+    """
+    structure = system.structure
+    n = system.n
+    # the loops of constant-mass and linear systems never read it
+    if system.m or not structure.quadratic_in_v or structure.quadratic or has_stage_form(system):
+        return ()
+    pieces = system.pieces
+    M = pieces.Lvv  # noqa: N806
+    diagonal = all(a == b for (a, b), e in M.todok().items() if e != 0)
+    if not diagonal and n > EXPLICIT_FULL_MASS:
+        return ()
+    at_rest = {w: sp.Integer(0) for w in system.v}
+    p = [sp.Symbol(f"p[{a}]", real=True) for a in range(n)]
+    rhs = [p[a] - pieces.Lv[a].xreplace(at_rest) for a in range(n)]
+    if diagonal:
+        if any(M[a, a] == 0 for a in range(n)):
+            return ()
+        velocity = [rhs[a] / M[a, a] for a in range(n)]
+    else:
+        det = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
+        velocity = [
+            (M[1, 1] * rhs[0] - M[0, 1] * rhs[1]) / det,
+            (M[0, 0] * rhs[1] - M[1, 0] * rhs[0]) / det,
+        ]
+    solved = dict(zip(system.v, velocity, strict=True))
+    force = [e.xreplace(solved) for e in pieces.force]
+    entries = [(f"V[{a}]", e.xreplace(rename)) for a, e in enumerate(velocity) if e != 0]
+    entries += [(f"F[{a}]", e.xreplace(rename)) for a, e in enumerate(force) if e != 0]
+    return tuple(entries)
 
 
 def _entry_count(pieces, has_lqv: bool, has_fv: bool) -> int:
@@ -390,6 +449,7 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
         # (:func:`parameter_derivative_spec`) has gradient entries only
         *(f"{k}={sp.srepr(e)}" for k, e in spec.gradient_entries),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.mass_entries),
+        *(f"{k}={sp.srepr(e)}" for k, e in spec.velocity_entries),
         *(_group_text(group) for group in spec.repeats),
     ):
         h.update(part.encode())

@@ -60,6 +60,7 @@ __all__ = [
     "HESSIAN",
     "LAGRANGIAN",
     "MASS",
+    "VELOCITY",
     "N_SLOTS",
     "N_TRAITS",
     "POINT_SLOTS",
@@ -112,6 +113,9 @@ CONSTRAINT_RATE = POINT_SLOTS["point_constraint_rate"]
 CONSTRAINT_HESS = POINT_SLOTS["point_constraint_hessian"]
 #: the gradient, L_qv + f_v and L_vv (the varying-mass loop)
 MASS = POINT_SLOTS["point_mass"]
+#: the velocity v = M^-1 (p - a) and L_q + f at it, from (t, q, p) (the varying-mass
+#: loop, when M is solved in closed form); 0 when the system has none
+VELOCITY = POINT_SLOTS["point_velocity"]
 N_SLOTS = len(POINT_SLOTS)
 
 # ------------------------------------------------------------------ traits

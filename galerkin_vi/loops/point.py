@@ -23,6 +23,7 @@ slot                   function
 ``CONSTRAINT_RATE``    ``void(double t, q, prm, gt)``
 ``CONSTRAINT_HESS``    ``void(double t, q, lam, prm, Hg)``
 ``MASS``               ``void(double t, q, v, prm, Lq, Lv, Lqv, Lvv)``
+``VELOCITY``           ``void(double t, q, p, prm, F, V)``
 =====================  ===================================================================
 
 Entries that are identically zero are never written: the loops zero those
@@ -49,6 +50,7 @@ from .abi import (
     LAGRANGIAN,
     MASS,
     N_SLOTS,
+    VELOCITY,
 )
 
 __all__ = [
@@ -61,6 +63,7 @@ __all__ = [
     "LAGRANGIAN",
     "MASS",
     "N_SLOTS",
+    "VELOCITY",
     "point_constraint",
     "point_constraint_hessian",
     "point_constraint_jacobian",
@@ -69,6 +72,7 @@ __all__ = [
     "point_gradient_row",
     "point_hessian",
     "point_mass_row",
+    "point_velocity_row",
 ]
 
 
@@ -255,6 +259,14 @@ def point_mass_row(fn, t, q, v, prm, G, Lv, Lqv, Lvv, row):
     :math:`L_{vv}` into ``Lqv``, ``Lvv``: what a sweep of the varying-mass loop needs, no
     :math:`L_{qq}`."""
     _call_mass_row(fn[MASS], t, q, v, prm, G, Lv, Lqv, Lvv, row)
+
+
+@kernel
+def point_velocity_row(fn, t, q, p, prm, F, V, row):
+    r"""The velocity :math:`v = M^{-1}(p - a)` at (t, q, p) into ``V[row, :]`` and
+    :math:`(L_q + f)(t, q, v)` into ``F[row, :]``: a Gauss stage of the varying-mass
+    loop from its position and momentum, when the system has ``point_velocity``."""
+    _call_gradient_row(fn[VELOCITY], t, q, p, prm, F, V, row)
 
 
 @kernel

@@ -10,6 +10,16 @@ of :math:`s` points; the stage equations and tables are those of
     V_i \leftarrow V_i + M(Q_i)^{-1}\big(P_i - L_v(Q_i, V_i)\big),
     \quad F_i = (L_q + f)(Q_i, V_i),
 
+or, when the system has the velocity in closed form (``point_velocity``: a
+diagonal :math:`M`, or at most two coordinates), the sweep of Hamilton's
+equations of the hand-written kernels,
+
+.. math::
+
+    V_i = M(Q_i)^{-1}\big(P_i - a(Q_i)\big), \quad F_i = (L_q + f)(Q_i, V_i),
+
+one call per stage, which solves the momentum equation exactly instead of
+correcting :math:`V_i` and :math:`F_i` to first order; both are
 iterated to round-off like the hand-written fixed-point kernels
 (``benchmarks/peers/strong.py``): the first iterate from the previous step's
 stage velocities and forces extrapolated to this step's nodes, and the
@@ -40,7 +50,7 @@ from .common import (
     wrap_angles,
 )
 from .linalg import lu_factor_inplace, lu_solve_inplace
-from .point import point_mass_row
+from .point import VELOCITY, point_mass_row, point_velocity_row
 from .stage_form import too_slow
 
 __all__ = [
@@ -140,6 +150,7 @@ def varying_mass_loop(
             F[i, a] = F[0, a]
     worst = 0.0
     mean_sweeps = 0.0
+    explicit = fn[VELOCITY] != 0
     for k in range(n_steps):
         tk = t0 + k * h
         if k > 0:
@@ -218,6 +229,14 @@ def varying_mass_loop(
             its += 1
             residual = 0.0
             singular = False
+            if explicit:
+                # the momentum equation solved in closed form: no residual, no correction
+                for i in range(r):
+                    for a in range(n):
+                        Qi[a] = Q[i, a]
+                        Vi[a] = P[i, a]
+                    point_velocity_row(fn, tk + c[i] * h, Qi, Vi, prm, F, V, i)
+                continue
             for i in range(r):
                 for a in range(n):
                     Qi[a] = Q[i, a]

@@ -152,14 +152,17 @@ class RunSpec:
         raise ValueError(f"the {path!r} loop is not called through loop_parts")
 
 
-def point_function_names(path: str, constraints: int, hessian: bool = False) -> tuple[str, ...]:
+def point_function_names(
+    path: str, constraints: int, hessian: bool = False, velocity: bool = False
+) -> tuple[str, ...]:
     """The compiled point functions a loop reads, in the order of its address slots;
-    ``hessian``: the explicit path's with the Hessian too (its tangent map reads it)."""
+    ``hessian``: the explicit path's with the Hessian too (its tangent map reads it);
+    ``velocity``: the system has ``point_velocity`` (the varying-mass loop reads it)."""
     names = ("point_gradient",)
     if path != "explicit" or hessian:
         names += ("point_hessian",)
     if path == "varying_mass":
-        names += ("point_mass",)
+        names += ("point_mass",) + (("point_velocity",) if velocity else ())
     if constraints:
         names += (
             "point_constraint",
@@ -262,7 +265,8 @@ def compiled_run_spec(
     (loaded or compiled here, those the loop of ``path`` reads; with ``hessian``, the
     Hessian too, for the explicit path's tangent map), ``hand_over`` the varying-mass
     loop's rule (:func:`galerkin_vi.run.loop_choice.hand_over`)."""
-    names = point_function_names(path, summary.m, hessian)
+    velocity = bool(summary.explicit_velocity)
+    names = point_function_names(path, summary.m, hessian, velocity)
     fn = tuple(int(address) for address in points.addresses(names))
     model = (fn, loop_traits(summary), banded_pattern(summary), periodic_mask(system))
     legendre = point_legendre(system, path, summary, points)
