@@ -283,10 +283,13 @@ def test_point_slots_are_one_table():
         "point_constraint_rate": abi.CONSTRAINT_RATE,
         "point_constraint_hessian": abi.CONSTRAINT_HESS,
         "point_mass": abi.MASS,
+        "point_velocity": abi.VELOCITY,
     }
     assert names == POINT_SLOTS
     # the loops' modules read the same objects
-    assert (point.GRADIENT, point.MASS, point.N_SLOTS) == (abi.GRADIENT, abi.MASS, abi.N_SLOTS)
+    assert (point.GRADIENT, point.MASS, point.VELOCITY, point.N_SLOTS) == (
+        abi.GRADIENT, abi.MASS, abi.VELOCITY, abi.N_SLOTS
+    )  # fmt: skip
     assert (traits.BAND, traits.AUTONOMOUS, traits.N_TRAITS) == (abi.BAND, abi.AUTONOMOUS, 4)
     system = gvi.LagrangianSystem(v**2 / 2 + sp.cos(q), [q], [v])
     integrator = gvi.Integrator(system, gvi.Galerkin(2))
