@@ -102,7 +102,7 @@ def test_noether_momentum_and_energy_in_polar_coordinates():
 
 
 def test_spherical_coordinates_take_the_diagonal_mass_path_and_conserve_p_phi():
-    # n = 3, M = diag(1, r^2, r^2 sin^2 theta): the divisions, not the LU
+    # n = 3, M = diag(1, r^2, r^2 sin^2 theta): the closed-form velocity, not the LU
     r, th, ph, vr, vth, vph = sp.symbols("r theta phi v_r v_theta v_phi")
     L = (vr**2 + r**2 * vth**2 + r**2 * sp.sin(th) ** 2 * vph**2) / 2 + 1 / r
     system = gvi.LagrangianSystem(L, [r, th, ph], [vr, vth, vph])
@@ -173,8 +173,9 @@ def test_a_step_the_fixed_point_cannot_take_hands_the_run_to_newton(monkeypatch)
     monkeypatch.setattr(segment, "newton_from_last_row", spy)
     fast = fast_integrator.integrate([3.0], [3.0], **run)
     # well into the run, not at the start (the running mean of the sweeps per step
-    # crosses the allowance near step 13 with the closed-form velocity, 26 without:
-    # the sweeps per step are the same, the mean sits on the threshold)
+    # crosses the allowance at step 13 with the closed-form velocity, 26 without: the
+    # sweeps per step are equal to step 11 and then 10 against 9, with the mean
+    # just under the threshold)
     assert len(handovers) == 1 and 8 < handovers[0] < 60
     newton = gvi.Integrator(system, method, specialize=False).integrate([3.0], [3.0], **run)
     assert fast.success and fast.n_steps == 60
@@ -256,8 +257,16 @@ def _damped_coriolis():
     return gvi.LagrangianSystem(L, [x, y], [vx, vy], forces=[-0.1 * vx, -0.2 * vy * x])
 
 
+def _driven_full_mass():
+    # a full 2 x 2 M that varies with t and q, a(t, q), and a force depending on t and v
+    t, x, y, vx, vy = sp.symbols("t x y vx vy")
+    m11, m12, m22 = 2 + sp.sin(t), sp.cos(x) / 2, 1 + y**2
+    L = (m11 * vx**2 + 2 * m12 * vx * vy + m22 * vy**2) / 2 + t * y * vx - x**2 - y**4
+    return gvi.LagrangianSystem(L, [x, y], [vx, vy], t=t, forces=[-t * vy, -0.3 * vx])
+
+
 @pytest.mark.parametrize(
-    "make", ["kepler_poincare", "double_pendulum", "spherical", "damped_coriolis"]
+    "make", ["kepler_poincare", "double_pendulum", "spherical", "damped_coriolis", "driven"]
 )
 def test_point_velocity_solves_the_momentum_equation_and_gives_the_force_there(make):
     # V = M^-1 (p - a) makes L_v(q, V) = p, and F = (L_q + f)(q, V): checked against the
@@ -267,13 +276,15 @@ def test_point_velocity_solves_the_momentum_equation_and_gives_the_force_there(m
         "double_pendulum": lambda: problems.double_pendulum().system,
         "spherical": _spherical,
         "damped_coriolis": _damped_coriolis,
+        "driven": _driven_full_mass,
     }[make]()
     n = system.n
     spec = codegen.kernel_spec(system)
     assert {k[0] for k, _ in spec.velocity_entries} == {"V", "F"}
     namespace: dict = {}
     exec(codegen.render_module(spec, "k"), namespace)  # noqa: S102 - generated here
-    args = [*system.q, *system.v, *system.params]
+    t = 0.7
+    args = [system.time_symbol, *system.q, *system.v, *system.params]
     Lv = sp.lambdify(args, list(system.pieces.Lv))
     force = sp.lambdify(args, list(system.pieces.force))
     rng = np.random.default_rng(7)
@@ -282,9 +293,9 @@ def test_point_velocity_solves_the_momentum_equation_and_gives_the_force_there(m
         q = rng.uniform(0.4, 1.3, n)
         p = rng.uniform(-1.0, 1.0, n)
         F, V = np.zeros((1, n)), np.zeros((1, n))
-        namespace["point_velocity"](0.0, q, p, prm, F[0], V[0])
-        np.testing.assert_allclose(Lv(*q, *V[0], *prm), p, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(F[0], force(*q, *V[0], *prm), rtol=1e-12, atol=1e-12)
+        namespace["point_velocity"](t, q, p, prm, F[0], V[0])
+        np.testing.assert_allclose(Lv(t, *q, *V[0], *prm), p, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(F[0], force(t, *q, *V[0], *prm), rtol=1e-12, atol=1e-12)
 
 
 def test_no_closed_form_velocity_for_a_full_mass_matrix_of_three_rows_or_a_constant_mass():
@@ -308,21 +319,34 @@ def _without_closed_form_velocity(monkeypatch):
     monkeypatch.setattr(compiled.PointFunctions, "addresses", without)
 
 
-@pytest.mark.parametrize("make", ["double_pendulum", "damped_coriolis", "spherical"])
+def _velocity_slot(integrator) -> int:
+    from galerkin_vi.loops.abi import VELOCITY
+
+    return integrator.run_spec.model[0][VELOCITY]
+
+
+@pytest.mark.parametrize("make", ["double_pendulum", "damped_coriolis", "spherical", "driven"])
 def test_the_closed_form_sweep_reaches_the_fixed_point_of_the_corrected_one(make, monkeypatch):
     # the same stage equations, solved by two iterations to round-off: the same map
     system = {
         "double_pendulum": lambda: problems.double_pendulum().system,
         "spherical": _spherical,
         "damped_coriolis": _damped_coriolis,
+        "driven": _driven_full_mass,
     }[make]()
     assert codegen.kernel_spec(system).velocity_entries
     start = ([0.9, 1.1, 0.2][: system.n], [0.3, -0.2, 0.5][: system.n])
     run = dict(h=0.02, n_steps=400)
-    closed = gvi.Integrator(system, GAUSS[2]).integrate(*start, **run)
+    closed_integrator = gvi.Integrator(system, GAUSS[2])
+    assert closed_integrator.kernel_path == "varying_mass"
+    assert _velocity_slot(closed_integrator) != 0
+    closed = closed_integrator.integrate(*start, **run)
     _without_closed_form_velocity(monkeypatch)
-    corrected = gvi.Integrator(system, GAUSS[2]).integrate(*start, **run)
+    corrected_integrator = gvi.Integrator(system, GAUSS[2])
+    assert _velocity_slot(corrected_integrator) == 0
+    corrected = corrected_integrator.integrate(*start, **run)
     assert closed.success and corrected.success
+    assert not np.array_equal(closed.p, corrected.p)  # two different iterations ran
     np.testing.assert_allclose(closed.q, corrected.q, rtol=0, atol=1e-12)
     np.testing.assert_allclose(closed.p, corrected.p, rtol=0, atol=1e-12)
     # exact stage forces converge at least as fast as first-order corrected ones
@@ -332,11 +356,14 @@ def test_the_closed_form_sweep_reaches_the_fixed_point_of_the_corrected_one(make
 def test_adaptive_kepler_with_the_closed_form_sweep_matches_the_corrected_one(monkeypatch):
     adaptive = _kepler_poincare()
     assert adaptive.integrator.kernel_path == "varying_mass"
+    assert _velocity_slot(adaptive.integrator) != 0
     q0, v0 = [0.1, 0.0], [0.0, float(np.sqrt(1.9 / 0.1))]  # e = 0.9 from pericentre
     run = dict(h=0.2, t_final=2 * np.pi * 3, save_every=10**6)
     closed = adaptive.integrate(q0, v0, **run)
     _without_closed_form_velocity(monkeypatch)
-    corrected = _kepler_poincare().integrate(q0, v0, **run)
+    first_order = _kepler_poincare()
+    assert _velocity_slot(first_order.integrator) == 0
+    corrected = first_order.integrate(q0, v0, **run)
     assert closed.success and corrected.success and closed.n_steps == corrected.n_steps
     np.testing.assert_allclose(closed.q[-1], corrected.q[-1], rtol=0, atol=1e-11)
     np.testing.assert_allclose(closed.p[-1], corrected.p[-1], rtol=0, atol=1e-11)

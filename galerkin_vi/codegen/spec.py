@@ -272,7 +272,9 @@ def _velocity_entries(system: LagrangianSystem, rename: dict) -> tuple[tuple[str
     (:mod:`galerkin_vi.loops.varying_mass`). Empty when the solution is not in
     closed form (L not quadratic in v, constraints, a full M of more rows) or
     when that loop does not run the system (constant mass and forces
-    independent of v, or linear stage equations).
+    independent of v, or linear stage equations); :func:`kernel_spec` does not
+    ask for it when the Lagrangian's repeated terms become scatter loops (the
+    straight-line code of a large system would cost its build time).
     """
     structure = system.structure
     n = system.n

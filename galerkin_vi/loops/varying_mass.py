@@ -19,7 +19,8 @@ equations of the hand-written kernels,
     V_i = M(Q_i)^{-1}\big(P_i - a(Q_i)\big), \quad F_i = (L_q + f)(Q_i, V_i),
 
 one call per stage, which solves the momentum equation exactly instead of
-correcting :math:`V_i` and :math:`F_i` to first order; both are
+correcting :math:`V_i` and :math:`F_i` to first order (the residual reported
+for those runs is then 0); both are
 iterated to round-off like the hand-written fixed-point kernels
 (``benchmarks/peers/strong.py``): the first iterate from the previous step's
 stage velocities and forces extrapolated to this step's nodes, and the
@@ -199,7 +200,7 @@ def varying_mass_loop(
                         moved = True
                         dq_abs = abs(new_q - Q[i, a]) * inv_scale_q[a]
                         dp_abs = abs(new_p - P[i, a]) * inv_scale_p[a]
-                        if dq_abs > change_q:
+                        if not dq_abs <= change_q:  # also catches NaN
                             change_q = dq_abs
                         if not dp_abs <= change_p:  # also catches NaN
                             change_p = dp_abs
@@ -230,7 +231,9 @@ def varying_mass_loop(
             residual = 0.0
             singular = False
             if explicit:
-                # the momentum equation solved in closed form: no residual, no correction
+                # the momentum equation solved in closed form: its residual is round-off
+                # and reported as 0; a NaN or inf in V or F reaches Q or P, and the
+                # change test above stops the iteration
                 for i in range(r):
                     for a in range(n):
                         Qi[a] = Q[i, a]
@@ -246,7 +249,9 @@ def varying_mass_loop(
                     rhs[a] = P[i, a] - Lv[a]
                     if not abs(rhs[a]) <= residual:  # also catches NaN
                         residual = abs(rhs[a])
-                # rhs <- M^-1 rhs: up to two coordinates by the adjugate (one division),
+                # rhs <- M^-1 rhs (systems without point_velocity: a full M of three or
+                # more coordinates, or repeated terms): up to two coordinates by the
+                # adjugate (one division),
                 # written here (a helper taking these arrays cost reference counts per
                 # call: double pendulum 0.96-0.98 of the kernel inline, 1.11-1.42 as a
                 # helper, 1.4 with the LU at every size); above from a copy (the point
@@ -268,8 +273,8 @@ def varying_mass_loop(
                     rhs[1] = (M[0] * rhs[1] - M[2] * rhs[0]) * inv_det
                     rhs[0] = x0
                 else:
-                    # a diagonal M (the time-transformed Kepler problem's, point masses
-                    # in a moving frame) by divisions, else a pivoted LU of a copy
+                    # a diagonal M (a large system with repeated terms) by divisions,
+                    # else a pivoted LU of a copy
                     diagonal = True
                     for a in range(n):
                         for cc in range(n):
