@@ -112,6 +112,7 @@ class PointFunctions:
     key: str
     module: ModuleType
     compiled: dict = field(default_factory=dict)
+    steps: Callable | None = None
 
     @property
     def source(self) -> str:
@@ -139,6 +140,25 @@ class PointFunctions:
         for name, compiled in self.compiled.items():
             out[POINT_SLOTS[name]] = _body_address(compiled)
         return out
+
+
+    def explicit_steps(self) -> Callable | None:
+        """The system's generated explicit loop (:mod:`.explicit_steps`), or None.
+
+        numba compiles it on its first call (``nogil``, so that threads run it at
+        once) and caches it beside the source.
+        """
+        function = getattr(self.module, "explicit_steps", None)
+        if function is None:
+            return None
+        from numba import njit
+
+        from ..loops import cache_locators
+
+        with _LOCK, cache_locators():
+            if self.steps is None:
+                self.steps = njit(cache=True, nogil=True, error_model="numpy")(function)
+        return self.steps
 
 
 def _body_address(compiled) -> int:

@@ -24,6 +24,7 @@ import numpy as np
 import sympy as sp
 
 from ..printer import KernelPrinter
+from .explicit_steps import render_explicit_steps
 from .repeats import Run, find_runs
 from .scatter import ScatterGroup
 from .spec import KernelSpec
@@ -400,6 +401,14 @@ def render_module(spec: KernelSpec, key: str) -> str:
     if spec.velocity_entries:
         # straight-line code (no scatter loops: systems with repeated terms have none)
         functions.append(_point_function("point_velocity", list(spec.velocity_entries), large))
+    steps = []
+    if spec.explicit_forces:
+        if not large:
+            head.append("import numpy as np")
+        force = [line[4:] for line in _function_body(list(spec.explicit_forces))]
+        steps = render_explicit_steps(
+            force, spec.n, spec.periodic, spec.diagonal_mass, spec.autonomous
+        )
     tables = [
         _table_literal(f"{group.name}_{what}", array)
         for group in spec.repeats
@@ -407,6 +416,7 @@ def render_module(spec: KernelSpec, key: str) -> str:
     ]
     tables += [table for _, function_tables in functions for table in function_tables]
     body = [line for lines, _ in functions for line in lines] + _constraint_functions(spec)
+    body += steps
     if tables:
         head += ["", "# index tables of the repeated terms' scatter loops", *tables]
     tail = ["", "", f"# end of galerkin_vi point functions {key}", ""]

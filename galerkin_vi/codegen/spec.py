@@ -25,6 +25,7 @@ from ..expression_walk import structural_bytes
 from ..method.stage_form import has_stage_form
 from ..model.symbolic import pointwise_pieces, without_point_masses
 from ..model.terms import repeated_terms
+from .explicit_steps import explicit_forces
 from .scatter import ScatterGroup, scatter_group
 
 if TYPE_CHECKING:
@@ -44,7 +45,7 @@ __all__ = [
     "use_banded",
 ]
 
-GENERATOR_VERSION = "11"
+GENERATOR_VERSION = "12"
 
 #: the fewest instances of a term that become a scatter loop (:mod:`.scatter`)
 MIN_REPEATS = 8
@@ -63,7 +64,9 @@ class KernelSpec:
     With ``repeats``, the point functions are the scatter loops of the repeated
     terms of :math:`L` (:mod:`.scatter`) plus the entries, which then hold
     only the rest: the derivatives of the terms that do not repeat and of the
-    forces, and ``lagrangian`` the sum of those terms.
+    forces, and ``lagrangian`` the sum of those terms. ``explicit_forces``
+    holds the force of a small separable system's generated explicit loop
+    (:mod:`.explicit_steps`), empty for every other system.
     """
 
     n: int
@@ -75,6 +78,7 @@ class KernelSpec:
     hessian_entries: tuple[tuple[str, sp.Expr], ...]
     mass_entries: tuple[tuple[str, sp.Expr], ...] = ()
     velocity_entries: tuple[tuple[str, sp.Expr], ...] = ()
+    explicit_forces: tuple[tuple[str, sp.Expr], ...] = ()
     pattern: tuple[tuple[int, int], ...] = ()
     half_bandwidth: int = 0
     banded: bool = False
@@ -236,6 +240,7 @@ def kernel_spec(system: LagrangianSystem, repeats: bool = True) -> KernelSpec:
         hessian_entries=tuple(hessian),
         mass_entries=tuple(mass),
         velocity_entries=() if groups else _velocity_entries(system, rename),
+        explicit_forces=explicit_forces(system, p, rename, bool(groups)),
         pattern=pattern if banded else (),
         half_bandwidth=half_bandwidth,
         banded=banded,
@@ -452,6 +457,7 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
         *(f"{k}={sp.srepr(e)}" for k, e in spec.gradient_entries),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.mass_entries),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.velocity_entries),
+        *(f"{k}={sp.srepr(e)}" for k, e in spec.explicit_forces),
         *(_group_text(group) for group in spec.repeats),
     ):
         h.update(part.encode())

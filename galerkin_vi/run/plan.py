@@ -7,6 +7,7 @@ resolved here, once, into a frozen :class:`RunPlan`; the run stages below it
 
 from __future__ import annotations
 
+import math
 import numbers
 from typing import NamedTuple
 
@@ -15,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "RunPlan",
+    "all_finite",
     "requested_times",
     "run_plan",
     "state_vector",
@@ -36,6 +38,16 @@ class RunPlan(NamedTuple):
         return self.t0 + self.n_steps * self.h
 
 
+def all_finite(x: NDArray[np.float64]) -> bool:
+    """Whether every entry of the 1-D float array ``x`` is finite.
+
+    The sum of squares is finite only when every entry is (a NaN or an inf makes
+    it NaN or inf); when it overflows, the entries decide one by one. A third of
+    ``np.isfinite(x).all()``'s time on the short vectors every run starts from.
+    """
+    return math.isfinite(float(np.dot(x, x))) or bool(np.isfinite(x).all())
+
+
 def state_vector(name: str, x: ArrayLike, n: int) -> NDArray[np.float64]:
     """``x`` as a finite float array of shape (n,); ``name`` in the error otherwise."""
     try:
@@ -44,17 +56,17 @@ def state_vector(name: str, x: ArrayLike, n: int) -> NDArray[np.float64]:
         raise TypeError(f"{name} must be an array of real numbers, got {x!r}") from exc
     if arr.shape != (n,):
         raise ValueError(f"{name} must have shape ({n},), got {arr.shape}")
-    if not np.isfinite(arr).all():
+    if not all_finite(arr):
         raise ValueError(f"{name} contains NaN or inf: {arr}")
     return arr
 
 
 def step_size(h: object) -> float:
     """``h`` checked: a finite nonzero real number."""
-    if not isinstance(h, numbers.Real) or isinstance(h, bool):
+    if type(h) is not float and (not isinstance(h, numbers.Real) or isinstance(h, bool)):
         raise TypeError(f"h must be a real number, got {h!r}")
     h = float(h)
-    if not np.isfinite(h) or h == 0.0:
+    if not math.isfinite(h) or h == 0.0:
         raise ValueError(f"h must be finite and nonzero, got {h}")
     return h
 
@@ -68,18 +80,19 @@ def run_plan(h, n_steps, t_span, t0, save_every) -> RunPlan:
     """
     h = step_size(h)
     h, n_steps, t0 = _span_steps(h, n_steps, t_span, t0)
-    if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 0:
+    if not _whole(n_steps) or n_steps < 0:
         raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
-    if (
-        isinstance(save_every, bool)
-        or not isinstance(save_every, numbers.Integral)
-        or save_every < 1
-    ):
+    if not _whole(save_every) or save_every < 1:
         raise ValueError(f"save_every must be a positive int, got {save_every!r}")
     t0 = float(t0)
-    if not np.isfinite(t0):
+    if not math.isfinite(t0):
         raise ValueError(f"t0 must be finite, got {t0}")
     return RunPlan(h=h, n_steps=int(n_steps), t0=t0, save_every=int(save_every))
+
+
+def _whole(x: object) -> bool:
+    """Whether ``x`` is an integer (a NumPy one too), not a bool."""
+    return type(x) is int or (isinstance(x, numbers.Integral) and not isinstance(x, bool))
 
 
 def _span_steps(h: float, n_steps, t_span, t0) -> tuple[float, object, object]:

@@ -80,18 +80,25 @@ def substeps(method) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 def _explicit(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     """A composition of Störmer–Verlet (one stage: itself) with :math:`M^{-1}` formed once
     per parameter vector (a diagonal M as its diagonal only), kept by the run spec's
-    Legendre transform."""
-    from ..loops import explicit_loop
-
+    Legendre transform; the system's generated explicit loop where it has one."""
     mass, inverse, diagonal = spec.legendre.inverse_mass(segment.prm)
     if inverse is None:
         raise DegenerateLagrangianError(f"the mass matrix d2L/dv2 = {mass} is singular")
+    s = segment
+    if spec.explicit_steps is not None:
+        return LoopResult(
+            *spec.explicit_steps(
+                s.q0, s.p0, s.t0, s.h, s.n_steps, s.save_every, s.prm, inverse,
+                *substeps(spec.method), *out.arrays,
+            )
+        )  # fmt: skip
+    from ..loops import explicit_loop
+
     fn, _, _, periodic = spec.model
     # switches (loops.traits): a run-time test of either costs a quarter of a step here
     periodic = periodic if periodic.any() else None
     diagonal = diagonal if spec.diagonal_mass else None
     time_dependent = None if spec.autonomous else True
-    s = segment
     return LoopResult(
         *explicit_loop(
             fn, periodic, time_dependent, s.q0, s.p0, s.t0, s.h, s.n_steps, s.save_every, s.prm,

@@ -94,6 +94,10 @@ class RunSpec:
         or None: dense linear algebra.
     hand_over : HandOver
         When the varying-mass loop gives the run up to Newton.
+    explicit_steps : callable or None
+        The explicit loop generated for this system
+        (:mod:`galerkin_vi.codegen.explicit_steps`), which the explicit path runs
+        in place of the shared one; None for every other system and path.
     """
 
     system: LagrangianSystem
@@ -110,6 +114,7 @@ class RunSpec:
     legendre: Any
     band: tuple | None = None
     hand_over: HandOver = EARLY_HAND_OVER
+    explicit_steps: Any = None
 
     @property
     def order(self) -> int:
@@ -272,9 +277,11 @@ def compiled_run_spec(
     legendre = point_legendre(system, path, summary, points)
     couplings = (summary.has_Lqv, summary.has_fv)
     band = constrained_band(system, method.degree) if path == "constrained" else None
+    # the tangent map's explicit loop is the shared one (its states are that loop's)
+    steps = None if path != "explicit" or hessian else points.explicit_steps()
     return RunSpec(
         system, method, path, "numba", tol, maxiter, model=model,
         diagonal_mass=bool(summary.diagonal_mass), autonomous=bool(summary.autonomous),
         couplings=couplings if any(couplings) else None, constant_mass=constant_mass,
-        legendre=legendre, band=band, hand_over=hand_over,
+        legendre=legendre, band=band, hand_over=hand_over, explicit_steps=steps,
     )  # fmt: skip

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from ..errors import DegenerateLagrangianError
 from ..model.constraints import consistent_initial_state, project_momentum
 from ..model.system import is_regular
-from .plan import state_vector
+from .plan import all_finite, state_vector
 from .spec import RunSpec
 
 __all__ = ["initial_momentum", "initial_state"]
@@ -42,8 +42,10 @@ def initial_momentum(spec: RunSpec, q0, v0, p0, t0: float, prm) -> tuple[NDArray
             p = p if v is not None else None
         else:
             p = None
-        if p is not None and np.isfinite(p).all() and np.isfinite(v).all():
-            return np.asarray(p, dtype=float), np.asarray(v, dtype=float)
+        if p is not None:
+            p, v = np.asarray(p, dtype=float), np.asarray(v, dtype=float)
+            if all_finite(p) and all_finite(v):
+                return p, v
     prm_dict = dict(zip(system.params, prm, strict=True))
     if v0 is not None:
         v = state_vector("v0", v0, n)

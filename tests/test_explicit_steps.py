@@ -1,0 +1,161 @@
+"""The explicit loop generated per system (``galerkin_vi.codegen.explicit_steps``): the
+shared explicit loop's states bit for bit, its failures, which systems get one, and its
+text run uncompiled."""
+
+from __future__ import annotations
+
+import dataclasses
+import pickle
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import galerkin_vi as gvi
+from galerkin_vi import codegen
+from galerkin_vi.codegen.explicit_steps import EXPLICIT_UNROLLED
+from galerkin_vi.problems.chains import spring_chain
+from galerkin_vi.problems.forced import driven_oscillator
+from galerkin_vi.problems.gravitation import kepler
+from galerkin_vi.problems.mechanics import henon_heiles, pendulum
+from galerkin_vi.run.segment import substeps
+from galerkin_vi.run.smooth import integrate_smooth
+
+
+def _coupled_masses() -> gvi.LagrangianSystem:
+    # a constant mass matrix that is not diagonal, and a parameter in the force
+    x, y, vx, vy, k = sp.symbols("x y vx vy k")
+    kinetic = (2 * vx**2 + 2 * vx * vy + 3 * vy**2) / 2
+    return gvi.LagrangianSystem(
+        kinetic - k * (x**2 + y**2) / 2 - x**4 / 4 - (x - y) ** 4 / 8, [x, y], [vx, vy],
+        params={k: 1.5},
+    )  # fmt: skip
+
+
+def _quartic() -> gvi.LagrangianSystem:
+    q, v = sp.symbols("q v")
+    return gvi.LagrangianSystem(v**2 / 2 - q**4, [q], [v])
+
+
+CASES = {
+    "henon_heiles": (henon_heiles().system, henon_heiles().q0, henon_heiles().v0),
+    "kepler": (kepler(0.6).system, kepler(0.6).q0, kepler(0.6).v0),
+    # v0 = 3: the pendulum goes over the top, so its angle wraps every turn
+    "pendulum_rotating": (pendulum().system, [1.5], [3.0]),
+    "driven_oscillator": (driven_oscillator().system, [1.0], [0.2]),
+    "full_mass": (_coupled_masses(), [0.3, -0.2], [0.1, 0.4]),
+}
+
+
+def _shared(integrator: gvi.Integrator):
+    """The run spec of ``integrator`` with the shared explicit loop."""
+    return dataclasses.replace(integrator.run_spec, explicit_steps=None)
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+@pytest.mark.parametrize(("h", "save_every"), [(0.05, 1), (0.05, 7), (-0.03, 5)])
+def test_the_generated_loop_takes_the_shared_loops_steps_bit_for_bit(name, h, save_every):
+    system, q0, v0 = CASES[name]
+    integrator = gvi.Integrator(system, gvi.Composition(6))
+    assert integrator.run_spec.explicit_steps is not None
+    run = dict(h=h, n_steps=400, save_every=save_every)
+    generated = integrator.integrate(q0, v0, **run)
+    shared = integrate_smooth(_shared(integrator), q0, v0, None, **run)
+    assert generated.success and len(generated) == len(shared) == -(-400 // save_every) + 1
+    for field in ("t", "q", "p"):
+        np.testing.assert_array_equal(getattr(generated, field), getattr(shared, field))
+    if name == "pendulum_rotating":
+        # many turns, and the reduced angles those of the shared loop's wraps
+        assert abs(generated.q[-1, 0]) > 10 * np.pi
+        np.testing.assert_array_equal(generated.q_reduced, shared.q_reduced)
+        assert np.all(np.abs(generated.q_reduced) <= np.pi)
+
+
+def test_stormer_verlet_itself_runs_the_generated_loop():
+    system, q0, v0 = CASES["kepler"]
+    integrator = gvi.Integrator(system, gvi.Galerkin(1, gvi.gauss_lobatto(2)))
+    assert integrator.kernel_path == "explicit"
+    assert integrator.run_spec.explicit_steps is not None
+    generated = integrator.integrate(q0, v0, h=0.01, n_steps=1000, save_every=100)
+    shared = integrate_smooth(_shared(integrator), q0, v0, None, h=0.01, n_steps=1000,
+                              save_every=100)  # fmt: skip
+    np.testing.assert_array_equal(generated.q, shared.q)
+    np.testing.assert_array_equal(generated.p, shared.p)
+
+
+@pytest.mark.parametrize("save_every", [1, 3, 1000])
+def test_a_step_that_overflows_keeps_the_same_states_as_the_shared_loop(save_every):
+    # V = q^4 with a step far past stability: |q| squares at every step until it overflows
+    integrator = gvi.Integrator(_quartic(), gvi.Composition(4))
+    run = dict(h=2.0, n_steps=1000, save_every=save_every, on_failure="warn")
+    with pytest.warns(gvi.RunFailureWarning):
+        generated = integrator.integrate([1.0], [0.0], **run)
+    with pytest.warns(gvi.RunFailureWarning):
+        shared = integrate_smooth(_shared(integrator), [1.0], [0.0], None, **run)
+    assert not generated.success and generated.status == shared.status
+    assert generated.n_steps == shared.n_steps < 1000
+    assert generated.message == shared.message
+    np.testing.assert_array_equal(generated.t, shared.t)
+    np.testing.assert_array_equal(generated.q, shared.q)
+    assert np.isfinite(generated.q).all() and np.isfinite(generated.p).all()
+
+
+def test_which_systems_get_a_generated_loop():
+    def has_steps(system) -> bool:
+        return bool(codegen.kernel_spec(system).explicit_forces)
+
+    assert has_steps(henon_heiles().system) and has_steps(_coupled_masses())
+    q, v, t = sp.symbols("q v t")
+    # a gyroscopic term a(t) v: the shared loop (its drift averages a over the sub-step)
+    gauge = gvi.LagrangianSystem(v**2 / 2 + sp.cos(t) * v - q**2 / 2, [q], [v], t=t)
+    assert not has_steps(gauge)
+    # a mass that varies: no explicit path at all
+    assert not has_steps(gvi.LagrangianSystem((1 + q**2) * v**2 / 2 - q**2 / 2, [q], [v]))
+    # too many coordinates to be scalars: the force dominates, the shared loop runs them
+    assert has_steps(spring_chain(EXPLICIT_UNROLLED, beta=0.5).system)
+    big = gvi.Integrator(spring_chain(EXPLICIT_UNROLLED + 1, beta=0.5).system, gvi.Composition(4))
+    assert big.run_spec.explicit_steps is None
+    # the tangent map keeps the shared loop (whose states it carries bit for bit)
+    small = gvi.Integrator(henon_heiles().system, gvi.Composition(4))
+    assert small.tangent_run_spec.explicit_steps is None
+
+
+def test_the_generated_text_runs_uncompiled_on_numpy_arrays():
+    system, q0, v0 = CASES["full_mass"]
+    source = codegen.render_module(codegen.kernel_spec(system), "key")
+    namespace: dict = {}
+    exec(compile(source, "<generated>", "exec"), namespace)
+    integrator = gvi.Integrator(system, gvi.Composition(4))
+    compiled = integrator.integrate(q0, v0, h=0.1, n_steps=20, save_every=4)
+    prm = system.parameter_vector(None)
+    _, inverse, _ = integrator.run_spec.legendre.inverse_mass(prm)
+    p0 = compiled.p[0]
+    t_out, q_out, p_out, turns = np.zeros(6), np.zeros((6, 2)), np.zeros((6, 2)), np.zeros((1, 2))
+    status, steps, saved, _, _ = namespace["explicit_steps"](
+        np.array(q0, float), p0, 0.0, 0.1, 20, 4, prm, inverse,
+        *substeps(gvi.Composition(4)), t_out, q_out, p_out, turns,
+    )  # fmt: skip
+    assert (status, steps, saved) == (0, 20, 6)
+    np.testing.assert_array_equal(t_out, compiled.t)
+    np.testing.assert_allclose(q_out, compiled.q, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(p_out, compiled.p, rtol=0, atol=1e-15)
+
+
+def test_an_integrator_with_a_generated_loop_pickles_before_and_after_use():
+    system, q0, v0 = CASES["henon_heiles"]
+    integrator = gvi.Integrator(system, gvi.Composition(8))
+    fresh = pickle.loads(pickle.dumps(integrator))
+    first = integrator.integrate(q0, v0, h=0.1, n_steps=50)
+    again = pickle.loads(pickle.dumps(integrator)).integrate(q0, v0, h=0.1, n_steps=50)
+    np.testing.assert_array_equal(first.q, again.q)
+    np.testing.assert_array_equal(first.q, fresh.integrate(q0, v0, h=0.1, n_steps=50).q)
+
+
+def test_members_on_threads_run_the_generated_loop():
+    system, q0, v0 = CASES["kepler"]
+    integrator = gvi.Integrator(system, gvi.Composition(6))
+    starts = np.array([q0, q0, q0], dtype=float) * np.array([[1.0], [1.1], [0.9]])
+    many = integrator.integrate_many(starts, np.array([v0] * 3), h=0.05, n_steps=200, workers=3)
+    for i in range(3):
+        one = integrate_smooth(_shared(integrator), starts[i], v0, None, h=0.05, n_steps=200)
+        np.testing.assert_array_equal(many[i].q, one.q)
