@@ -52,8 +52,10 @@ def explicit_forces(
 
     :math:`F = L_q + f` at :math:`v = 0` in the scalars ``q_a``. Generated for a
     separable :math:`L = \tfrac12 v^TMv - V(t, q)` (constant :math:`M`, no
-    gyroscopic term, forces free of :math:`v`) without constraints or repeated
-    terms, of at most :data:`EXPLICIT_UNROLLED` coordinates.
+    gyroscopic term, forces free of :math:`v`) without constraints, of at most
+    :data:`EXPLICIT_UNROLLED` coordinates, and without repeated terms: where the
+    point functions loop over a pair potential, the force is most of a sub-step
+    and written out it takes seconds to compile (docs/performance.md).
     """
     structure = system.structure
     n = system.n

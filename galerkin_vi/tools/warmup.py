@@ -209,6 +209,16 @@ def _warm_up_one(run: tuple) -> float:
         integrator.integrate_many([q0, q0], [v0, v0], h=0.01, n_steps=2, tangent=True, workers=1)
         if not system.m:
             warm_up_adjoint(integrator, q0, v0)
+    elif label.startswith("explicit"):
+        from dataclasses import replace
+
+        from ..run.smooth import integrate_smooth
+
+        # the shared explicit loop, which the systems without a generated one run (the
+        # warm-up's small systems have one: numba compiles that per system, on first use)
+        integrator = Integrator(system, method, specialize=specialize)
+        shared = replace(integrator.run_spec, explicit_steps=None)
+        integrate_smooth(shared, q0, v0, None, h=0.01, n_steps=2, on_failure="raise")
     else:
         integrator = Integrator(system, method, specialize=specialize)
         integrator.integrate(q0, v0=v0, h=0.01, n_steps=2, on_failure="raise")
