@@ -19,6 +19,7 @@ Usage::
 
     python benchmarks/same_method.py                         # all problems, s = 2..4
     python benchmarks/same_method.py --problems pendulum kepler --json out.json
+    python benchmarks/same_method.py --specialize system     # the generated stage loops
 """
 
 from __future__ import annotations
@@ -68,11 +69,12 @@ def row(
     seconds: float,
     repeats: int,
     h_scale: float = 1.0,
+    specialize: bool | str = True,
 ) -> dict:
     """One problem and method at ``h_scale`` times the problem's per-step h: times,
     iterations, final-state difference."""
     quad = gvi.gauss_legendre(s) if family == "gauss" else gvi.gauss_lobatto(s + 1)
-    integ = gvi.Integrator(case.problem.system, gvi.Galerkin(s, quad))
+    integ = gvi.Integrator(case.problem.system, gvi.Galerkin(s, quad), specialize=specialize)
     h, prm = h_scale * case.per_step_h, case.problem.params
 
     def gvi_run(n):
@@ -149,7 +151,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="step size as a multiple of the problem's per-step h (0.01: the regime where "
         "the extrapolated start is nearly exact and one or two sweeps converge)",
     )
+    parser.add_argument(
+        "--specialize",
+        choices=("true", "system"),
+        default="true",
+        help='galerkin_vi\'s specialize: "system" runs the stage-form loop generated for '
+        "the system (compiled once per system)",
+    )
     args = parser.parse_args(argv)
+    specialize = True if args.specialize == "true" else "system"
     header = (
         f"{'problem':20s} {'method':11s} {'loop':10s} {'gvi ns':>9s} {'hw ns':>9s} {'ratio':>6s}"
         f" {'gvi its':>8s} {'hw sweeps':>9s} {'final dq':>9s} {'hw kernel':>11s}"
@@ -162,7 +172,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for label, s, family in METHODS:
             if label not in args.methods:
                 continue
-            r = row(case, label, s, family, args.seconds, args.repeats, args.h_scale)
+            r = row(case, label, s, family, args.seconds, args.repeats, args.h_scale, specialize)
             if not r:
                 continue
             rows.append(r)

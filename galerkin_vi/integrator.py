@@ -50,9 +50,17 @@ class Integrator:
         decreasing (no round-off drift).
     maxiter : int
         Newton iteration cap per step (at most 255).
-    specialize : bool
+    specialize : bool or "system"
         Let the structure of the problem pick a cheaper time loop (see
         :attr:`kernel_path`); ``False`` forces the general Newton loop.
+        ``"system"`` also runs the stage-form loop (``"separable"`` path) of a small
+        system with a diagonal constant mass as a loop generated for that system
+        (:mod:`galerkin_vi.codegen.stage_steps`: its coordinates as scalars, its
+        force inline; the same steps bit for bit, in about two thirds of the time
+        where a step is a few sweeps of a cheap force), at the price of compiling
+        it: 1.5–4 s once per system and machine, cached on disk. The explicit path
+        (compositions, Störmer–Verlet) runs its generated loop with either true
+        value: it compiles in a fraction of a second.
     fixed_point : bool or "persistent"
         With a mass matrix that varies, iterate the stage velocities by fixed
         point (the ``"varying_mass"`` loop; default) rather than by Newton. The
@@ -87,7 +95,7 @@ class Integrator:
         backend: str = "auto",
         tol: float = 1e-14,
         maxiter: int = 30,
-        specialize: bool = True,
+        specialize: bool | str = True,
         fixed_point: bool | str = True,
     ) -> None:
         if not isinstance(system, LagrangianSystem):
@@ -118,7 +126,9 @@ class Integrator:
         self.backend = resolve_backend(backend)
         self.tol = float(tol)
         self.maxiter = int(maxiter)
-        self.specialize = bool(specialize)
+        if specialize not in (True, False, "system"):
+            raise ValueError(f'specialize must be True, False or "system", got {specialize!r}')
+        self.specialize = specialize if specialize == "system" else bool(specialize)
         hand_over(fixed_point)  # checks the value
         self.fixed_point = fixed_point
 
@@ -223,6 +233,7 @@ class Integrator:
             self._points,
             constant_mass=self.uses_constant_mass,
             hand_over=hand_over(self.fixed_point),
+            per_system=self.specialize == "system",
         )
 
     @cached_property

@@ -34,13 +34,13 @@ def g(kepler):
 def count_hand_overs(monkeypatch) -> list[int]:
     """Count the varying-mass loop's hand-overs to Newton (one per segment at most)."""
     calls = [0]
-    original = segment.newton_from_last_row
+    original = segment.continue_from_last_row
 
     def counted(*args, **kwargs):
         calls[0] += 1
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(segment, "newton_from_last_row", counted)
+    monkeypatch.setattr(segment, "continue_from_last_row", counted)
     return calls
 
 

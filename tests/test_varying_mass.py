@@ -164,13 +164,13 @@ def test_a_step_the_fixed_point_cannot_take_hands_the_run_to_newton(monkeypatch)
     handovers = []
     from galerkin_vi.run import segment
 
-    original = segment.newton_from_last_row
+    original = segment.continue_from_last_row
 
-    def spy(spec, run, out, result):
+    def spy(spec, run, out, result, path):
         handovers.append(result.steps)  # the step the fixed point stopped before
-        return original(spec, run, out, result)
+        return original(spec, run, out, result, path)
 
-    monkeypatch.setattr(segment, "newton_from_last_row", spy)
+    monkeypatch.setattr(segment, "continue_from_last_row", spy)
     fast = fast_integrator.integrate([3.0], [3.0], **run)
     # well into the run, not at the start (the running mean of the sweeps per step
     # crosses the allowance at step 13 with the closed-form velocity, 26 without: the

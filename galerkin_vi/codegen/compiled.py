@@ -112,7 +112,7 @@ class PointFunctions:
     key: str
     module: ModuleType
     compiled: dict = field(default_factory=dict)
-    steps: Callable | None = None
+    loops: dict = field(default_factory=dict)
 
     @property
     def source(self) -> str:
@@ -142,13 +142,14 @@ class PointFunctions:
         return out
 
 
-    def explicit_steps(self) -> Callable | None:
-        """The system's generated explicit loop (:mod:`.explicit_steps`), or None.
+    def generated_loop(self, name: str) -> Callable | None:
+        """The system's generated loop ``name`` (``"explicit_steps"``, ``"stage_steps"``:
+        :mod:`.explicit_steps`, :mod:`.stage_steps`), or None when it has none.
 
         numba compiles it on its first call (``nogil``, so that threads run it at
         once) and caches it beside the source.
         """
-        function = getattr(self.module, "explicit_steps", None)
+        function = getattr(self.module, name, None)
         if function is None:
             return None
         from numba import njit
@@ -156,9 +157,9 @@ class PointFunctions:
         from ..loops import cache_locators
 
         with _LOCK, cache_locators():
-            if self.steps is None:
-                self.steps = njit(cache=True, nogil=True, error_model="numpy")(function)
-        return self.steps
+            if name not in self.loops:
+                self.loops[name] = njit(cache=True, nogil=True, error_model="numpy")(function)
+        return self.loops[name]
 
 
 def _body_address(compiled) -> int:

@@ -31,7 +31,14 @@ from __future__ import annotations
 
 import sympy as sp
 
-__all__ = ["EXPLICIT_UNROLLED", "explicit_forces", "render_explicit_steps"]
+__all__ = [
+    "EXPLICIT_UNROLLED",
+    "explicit_forces",
+    "indented",
+    "render_explicit_steps",
+    "row_lines",
+    "wrap_lines",
+]
 
 #: the largest system whose explicit loop is generated with scalar coordinates: beyond
 #: it the force dominates a sub-step and the shared loop's arrays cost little
@@ -73,12 +80,13 @@ def explicit_forces(
     )
 
 
-def _indented(lines: list[str], depth: int) -> list[str]:
+def indented(lines: list[str], depth: int) -> list[str]:
+    """``lines`` indented by ``depth`` levels of four spaces."""
     pad = "    " * depth
     return [pad + line for line in lines]
 
 
-def _row(
+def row_lines(
     row: str, t: str, q: str, p: str, n: int, periodic: tuple[bool, ...], lost: str, turns: str
 ) -> list[str]:
     """Lines saving ``(t, q, p)`` into output row ``row`` (angles with their compensation)."""
@@ -93,7 +101,7 @@ def _row(
     return lines
 
 
-def _wrap(a: int) -> list[str]:
+def wrap_lines(a: int) -> list[str]:
     """Lines translating angle ``q_a`` by whole turns into [-pi, pi) (:func:`wrap_angles`)."""
     return [
         f"if not -math.pi <= q_{a} < math.pi:",
@@ -137,14 +145,14 @@ def render_explicit_steps(
     body = [f"q_{a} = q0[{a}]" for a in range(n)] + [f"p_{a} = p0[{a}]" for a in range(n)]
     body += [f"l_{a} = 0.0" for a in angles] + [f"r_{a} = 0.0" for a in angles]
     for a in angles:
-        body += _wrap(a)
+        body += wrap_lines(a)
     weights = {
         (a, b): f"w_{a}_{b}" for a in range(n) for b in range(n) if a == b or not diagonal_mass
     }
     body += [f"{name} = Minv[{a}, {b}]" for (a, b), name in weights.items()]
     body += ["m = drift.shape[0]", "t = t0"]
     body += force + [f"f_{a} = g_{a}" for a in range(n)]
-    body += _row("0", "t0", "q", "p", n, periodic, "l", "r")
+    body += row_lines("0", "t0", "q", "p", n, periodic, "l", "r")
     body += ["saved = 1", "for k in range(n_steps):"]
     step = [f"b_{a} = q_{a}" for a in range(n)] + [f"c_{a} = p_{a}" for a in range(n)]
     step += [f"bl_{a} = l_{a}" for a in angles] + [f"br_{a} = r_{a}" for a in angles]
@@ -167,18 +175,18 @@ def render_explicit_steps(
             sub.append(f"q_{a} += eta * ({product})")
     if angles:
         sub.append("if i == m - 1:")
-        sub += _indented([line for a in angles for line in _wrap(a)], 1)
+        sub += indented([line for a in angles for line in wrap_lines(a)], 1)
     sub += force
     sub += [f"p_{a} += before * f_{a} + after * g_{a}" for a in range(n)]
     sub += [f"f_{a} = g_{a}" for a in range(n)]
-    step += _indented(sub, 1)
+    step += indented(sub, 1)
     finite = " and ".join(f"abs({x}_{a}) < 1e300" for a in range(n) for x in ("q", "p"))
     step += [f"if not ({finite}):", "    if k % save_every != 0:"]
-    step += _indented(_row("saved", "t0 + k * h", "b", "c", n, periodic, "bl", "br"), 2)
+    step += indented(row_lines("saved", "t0 + k * h", "b", "c", n, periodic, "bl", "br"), 2)
     step += ["        saved += 1", f"    return {_STATUS_NONFINITE}, k, saved, 0.0, np.nan"]
     step += ["if (k + 1) % save_every == 0 or k + 1 == n_steps:"]
-    step += _indented(_row("saved", "t0 + (k + 1) * h", "q", "p", n, periodic, "l", "r"), 1)
+    step += indented(row_lines("saved", "t0 + (k + 1) * h", "q", "p", n, periodic, "l", "r"), 1)
     step += ["    saved += 1"]
-    body += _indented(step, 1)
+    body += indented(step, 1)
     body.append(f"return {_STATUS_OK}, n_steps, saved, 0.0, np.nan")
-    return lines + _indented(body, 1)
+    return lines + indented(body, 1)

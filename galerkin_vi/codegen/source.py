@@ -27,7 +27,9 @@ from ..printer import KernelPrinter
 from .explicit_steps import render_explicit_steps
 from .repeats import Run, find_runs
 from .scatter import ScatterGroup
-from .spec import KernelSpec
+from .spec import KernelSpec, has_stage_steps
+from .stage_steps import IMPORTS as STAGE_IMPORTS
+from .stage_steps import render_stage_steps
 
 __all__ = ["FUNCTIONS", "POINT_CHUNK", "render_module"]
 
@@ -366,6 +368,18 @@ def _constraint_functions(spec: KernelSpec) -> list[str]:
     ]
 
 
+def _mass_diagonal(spec: KernelSpec) -> list[str]:
+    """The printed diagonal of the constant mass matrix (its ``Lvv`` entries)."""
+    entries = dict(spec.hessian_entries)
+    printer = KernelPrinter()
+    out = []
+    for a in range(spec.n):
+        k = spec.pattern.index((a, a)) if spec.banded else a * spec.n + a
+        entry = entries.get(f"Lvv[{k}]")
+        out.append("0.0" if entry is None else f"float({printer.doprint(entry)})")
+    return out
+
+
 def render_module(spec: KernelSpec, key: str) -> str:
     """Source text of the point-function module of ``spec``.
 
@@ -409,6 +423,11 @@ def render_module(spec: KernelSpec, key: str) -> str:
         steps = render_explicit_steps(
             force, spec.n, spec.periodic, spec.diagonal_mass, spec.autonomous
         )
+        if has_stage_steps(spec):
+            head += ["", *STAGE_IMPORTS]
+            steps += render_stage_steps(
+                force, _mass_diagonal(spec), spec.n, spec.periodic, spec.autonomous
+            )
     tables = [
         _table_literal(f"{group.name}_{what}", array)
         for group in spec.repeats

@@ -34,6 +34,7 @@ if TYPE_CHECKING:
 __all__ = [
     "GENERATOR_VERSION",
     "KernelSpec",
+    "has_stage_steps",
     "MIN_REPEATS",
     "REPEATS_FROM",
     "SpecSummary",
@@ -459,10 +460,26 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
         *(f"{k}={sp.srepr(e)}" for k, e in spec.velocity_entries),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.explicit_forces),
         *(_group_text(group) for group in spec.repeats),
+        # the generated stage-form loop inlines the shared loop's stopping rule: compiled
+        # anew with every version of the loops
+        *((_loop_version(),) if backend == "numba" and has_stage_steps(spec) else ()),
     ):
         h.update(part.encode())
         h.update(b"\0")
     return h.hexdigest()
+
+
+def _loop_version() -> str:
+    """The name of the loops' cache folder: a hash of their sources, numba's and Python's."""
+    from ..loops import loop_cache_dir
+
+    return loop_cache_dir().name
+
+
+def has_stage_steps(spec: KernelSpec) -> bool:
+    """Whether the point module of ``spec`` holds the generated stage-form loop
+    (:mod:`.stage_steps`): a system with the generated explicit loop and a diagonal M."""
+    return bool(spec.explicit_forces) and spec.diagonal_mass
 
 
 def _group_text(group: ScatterGroup) -> str:

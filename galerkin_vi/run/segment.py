@@ -4,7 +4,8 @@ The loop is the one :attr:`RunSpec.path <galerkin_vi.run.spec.RunSpec>` names,
 or the NumPy reference on that backend. Every path returns the loops' one
 result shape, :class:`LoopResult`. A varying-mass run that the fixed-point
 iteration gives up on is handed over to the general Newton loop from its last
-saved row (:func:`newton_from_last_row`); its failures are the run's.
+saved row, a run of a system's generated stage-form loop to the shared one
+(:func:`continue_from_last_row`); their failures are the run's.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import DegenerateLagrangianError
-from ..loops.abi import LoopResult
+from ..loops.abi import STATUS_NEWTON_FAILED, LoopResult
 from ..method.composition import VERLET_SUBSTEPS, Composition
 from ..reference import numpy as numpy_backend
 from ..reference import numpy_constrained
@@ -58,9 +59,15 @@ def run_segment(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     if spec.path == "explicit":
         return _explicit(spec, segment, out)
     loop, before, after = spec.loop_parts()
+    if spec.stage_steps is not None:
+        result = LoopResult(*spec.stage_steps(*segment.arguments, *after, *out.arrays, *counters))
+        if result.status == STATUS_NEWTON_FAILED:
+            # a step the constant-mass fixed point cannot take: the shared loop's Newton
+            return continue_from_last_row(spec, segment, out, result, "separable")
+        return result
     result = LoopResult(*loop(*before, *segment.arguments, *after, *out.arrays, *counters))
     if spec.path == "varying_mass" and result.status != 0:
-        return newton_from_last_row(spec, segment, out, result)
+        return continue_from_last_row(spec, segment, out, result, "newton")
     return result
 
 
@@ -107,23 +114,23 @@ def _explicit(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     )  # fmt: skip
 
 
-def newton_from_last_row(
-    spec: RunSpec, segment: Segment, out: RunOutputs, result: LoopResult
+def continue_from_last_row(
+    spec: RunSpec, segment: Segment, out: RunOutputs, result: LoopResult, path: str
 ) -> LoopResult:
-    """Continue a run the varying-mass loop gave up on with Newton, from the state at step k.
+    """Continue a run a fixed-point loop gave up on with the loop of ``path``, from step k.
 
-    The fixed-point iteration stops before a step on which it contracts too
-    slowly (or fails), and leaves the state before it as its last row, due for
-    saving or not. The general loop runs the rest of the segment from there in
-    one call (a join like a chunk's: the compensation bits and the extrapolated
-    stages start afresh), saving every step into work arrays (a segment is at
-    most a chunk long); the rows due are copied into the run's. These are the
-    steps, and the one call, that the run saving every step takes, so a run with
-    ``save_every = k`` saves every k-th of its rows bit for bit. Its failures
-    are the run's.
+    The varying-mass loop's fixed-point iteration (continued by the general
+    loop, ``path="newton"``) and the generated stage-form loop's (continued by
+    the shared stage-form loop, ``"separable"``, which switches to Newton there)
+    stop before a step on which they contract too slowly (or fail), and leave
+    the state before it as their last row, due for saving or not. The loop of
+    ``path`` runs the rest of the segment from there in one call (a join like a
+    chunk's: the compensation bits and the extrapolated stages start afresh),
+    saving every step into work arrays (a segment is at most a chunk long); the
+    rows due are copied into the run's. These are the steps, and the one call,
+    that the run saving every step takes, so a run with ``save_every = k`` saves
+    every k-th of its rows bit for bit. Its failures are the run's.
     """
-    from .. import loops
-
     s = segment
     k, row = result.steps, result.saved - 1
     t_k = s.t0 + k * s.h
@@ -137,8 +144,8 @@ def newton_from_last_row(
         prm_map = dict(zip(spec.system.params, s.prm, strict=True))
         v_row = spec.system.inverse_legendre(q_row, p_row, t_k, prm_map)
     tail = RunOutputs.allocate(s.n_steps - k, 1, spec.system.n, out.periodic)
-    _, before, after = spec.loop_parts("newton")
-    status, done, saved, worst, increment = loops.general_loop(
+    loop, before, after = spec.loop_parts(path)
+    status, done, saved, worst, increment = loop(
         *before, q_row, p_row, np.asarray(v_row, dtype=float), t_k, s.h, s.n_steps - k, 1,
         s.prm, *after, *tail.arrays, tail.iterations, tail.iteration_total,
     )  # fmt: skip

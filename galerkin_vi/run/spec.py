@@ -94,10 +94,11 @@ class RunSpec:
         or None: dense linear algebra.
     hand_over : HandOver
         When the varying-mass loop gives the run up to Newton.
-    explicit_steps : callable or None
-        The explicit loop generated for this system
-        (:mod:`galerkin_vi.codegen.explicit_steps`), which the explicit path runs
-        in place of the shared one; None for every other system and path.
+    explicit_steps, stage_steps : callable or None
+        The explicit and stage-form loops generated for this system
+        (:mod:`galerkin_vi.codegen.explicit_steps`, :mod:`galerkin_vi.codegen.stage_steps`),
+        which the explicit and separable paths run in place of the shared ones;
+        None for every other system and path.
     """
 
     system: LagrangianSystem
@@ -115,6 +116,7 @@ class RunSpec:
     band: tuple | None = None
     hand_over: HandOver = EARLY_HAND_OVER
     explicit_steps: Any = None
+    stage_steps: Any = None
 
     @property
     def order(self) -> int:
@@ -264,12 +266,14 @@ def compiled_run_spec(
     constant_mass: bool,
     hand_over: HandOver = EARLY_HAND_OVER,
     hessian: bool = False,
+    per_system: bool = False,
 ) -> RunSpec:
     """The :class:`RunSpec` of the compiled loops: ``summary`` is the system's
     :class:`~galerkin_vi.codegen.SpecSummary`, ``points`` its compiled point functions
     (loaded or compiled here, those the loop of ``path`` reads; with ``hessian``, the
     Hessian too, for the explicit path's tangent map), ``hand_over`` the varying-mass
-    loop's rule (:func:`galerkin_vi.run.loop_choice.hand_over`)."""
+    loop's rule (:func:`galerkin_vi.run.loop_choice.hand_over`), ``per_system`` whether
+    the separable path runs the system's generated stage-form loop where it has one."""
     velocity = bool(summary.explicit_velocity)
     names = point_function_names(path, summary.m, hessian, velocity)
     fn = tuple(int(address) for address in points.addresses(names))
@@ -278,10 +282,14 @@ def compiled_run_spec(
     couplings = (summary.has_Lqv, summary.has_fv)
     band = constrained_band(system, method.degree) if path == "constrained" else None
     # the tangent map's explicit loop is the shared one (its states are that loop's)
-    steps = None if path != "explicit" or hessian else points.explicit_steps()
+    steps = None if path != "explicit" or hessian else points.generated_loop("explicit_steps")
+    # the generated stage-form loop iterates the constant-mass fixed point only
+    separable = path == "separable" and constant_mass and per_system
+    stages = points.generated_loop("stage_steps") if separable else None
     return RunSpec(
         system, method, path, "numba", tol, maxiter, model=model,
         diagonal_mass=bool(summary.diagonal_mass), autonomous=bool(summary.autonomous),
         couplings=couplings if any(couplings) else None, constant_mass=constant_mass,
         legendre=legendre, band=band, hand_over=hand_over, explicit_steps=steps,
+        stage_steps=stages,
     )  # fmt: skip

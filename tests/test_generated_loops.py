@@ -1,6 +1,6 @@
-"""The explicit loop generated per system (``galerkin_vi.codegen.explicit_steps``): the
-shared explicit loop's states bit for bit, its failures, which systems get one, and its
-text run uncompiled."""
+"""The loops generated per system (``galerkin_vi.codegen.explicit_steps`` and
+``stage_steps``): the shared loops' states bit for bit, their failures and hand-overs,
+which systems get them, ``specialize="system"``, and their text run uncompiled."""
 
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ from galerkin_vi.problems.chains import spring_chain
 from galerkin_vi.problems.forced import driven_oscillator
 from galerkin_vi.problems.gravitation import kepler
 from galerkin_vi.problems.mechanics import henon_heiles, pendulum
+from galerkin_vi.run import segment
 from galerkin_vi.run.segment import substeps
 from galerkin_vi.run.smooth import integrate_smooth
 
@@ -48,8 +49,14 @@ CASES = {
 
 
 def _shared(integrator: gvi.Integrator):
-    """The run spec of ``integrator`` with the shared explicit loop."""
-    return dataclasses.replace(integrator.run_spec, explicit_steps=None)
+    """The run spec of ``integrator`` with the shared loops."""
+    return dataclasses.replace(integrator.run_spec, explicit_steps=None, stage_steps=None)
+
+
+def _driven_pendulum() -> gvi.LagrangianSystem:
+    # separable, not quadratic, and time-dependent: the stage-form path with t in the force
+    q, v, t = sp.symbols("q v t")
+    return gvi.LagrangianSystem(v**2 / 2 + sp.cos(q) + q * sp.cos(2 * t) / 3, [q], [v], t=t)
 
 
 @pytest.mark.parametrize("name", sorted(CASES))
@@ -159,3 +166,123 @@ def test_members_on_threads_run_the_generated_loop():
     for i in range(3):
         one = integrate_smooth(_shared(integrator), starts[i], v0, None, h=0.05, n_steps=200)
         np.testing.assert_array_equal(many[i].q, one.q)
+
+
+# ------------------------------------------------------------ the stage-form loop
+STAGE_CASES = {
+    "henon_heiles": CASES["henon_heiles"],
+    "kepler": CASES["kepler"],
+    "pendulum_rotating": CASES["pendulum_rotating"],
+    "driven_pendulum": (_driven_pendulum(), [0.5], [0.4]),
+}
+METHODS = {
+    "gauss2": gvi.Galerkin(2, gvi.gauss_legendre(2)),
+    "gauss4": gvi.Galerkin(4, gvi.gauss_legendre(4)),
+    "lobatto3": gvi.Galerkin(2),
+    "lobatto5": gvi.Galerkin(4),
+}
+
+
+@pytest.mark.parametrize("name", sorted(STAGE_CASES))
+@pytest.mark.parametrize("method", sorted(METHODS))
+@pytest.mark.parametrize(("h", "save_every"), [(0.05, 1), (-0.04, 6)])
+def test_the_generated_stage_loop_takes_the_shared_loops_steps_and_sweeps(
+    name, method, h, save_every, monkeypatch
+):
+    system, q0, v0 = STAGE_CASES[name]
+    integrator = gvi.Integrator(system, METHODS[method], specialize="system")
+    assert integrator.kernel_path == "separable"
+    assert integrator.run_spec.stage_steps is not None
+    handed = []
+    monkeypatch.setattr(segment, "continue_from_last_row", lambda *args: handed.append(args))
+    run = dict(h=h, n_steps=300, save_every=save_every)
+    generated = integrator.integrate(q0, v0, **run)
+    assert not handed  # steps this small converge by the fixed point alone
+    shared = integrate_smooth(_shared(integrator), q0, v0, None, **run)
+    for field in ("t", "q", "p", "newton_iterations"):
+        np.testing.assert_array_equal(getattr(generated, field), getattr(shared, field))
+    assert generated.total_newton_iterations == shared.total_newton_iterations
+    assert generated.max_residual == shared.max_residual
+    if name == "pendulum_rotating":
+        np.testing.assert_array_equal(generated.q_reduced, shared.q_reduced)
+
+
+def test_a_step_the_fixed_point_cannot_take_goes_to_the_shared_loops_newton(monkeypatch):
+    system, q0, v0 = STAGE_CASES["pendulum_rotating"]
+    integrator = gvi.Integrator(system, METHODS["gauss2"], specialize="system")
+    handed = []
+    original = segment.continue_from_last_row
+
+    def spy(spec, run, out, result, path):
+        handed.append((result.steps, path))
+        return original(spec, run, out, result, path)
+
+    monkeypatch.setattr(segment, "continue_from_last_row", spy)
+    # h = 0.3: the fixed point contracts too slowly a few steps in (measured: step 2)
+    run = dict(h=0.3, n_steps=200, save_every=3)
+    generated = integrator.integrate(q0, v0, **run)
+    shared = integrate_smooth(_shared(integrator), q0, v0, None, **run)
+    assert len(handed) == 1 and 0 < handed[0][0] < 200 and handed[0][1] == "separable"
+    assert generated.success and len(generated) == len(shared)
+    np.testing.assert_array_equal(generated.t, shared.t)
+    # the rows before the hand-over are the shared loop's; after it the join restarts the
+    # compensation and the first iterate, and the two runs agree to the iteration's tolerance
+    before = handed[0][0] // 3 + 1
+    np.testing.assert_array_equal(generated.q[:before], shared.q[:before])
+    np.testing.assert_allclose(generated.q, shared.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(generated.p, shared.p, rtol=0, atol=1e-12)
+
+
+def test_a_run_whose_steps_fail_fails_where_the_shared_loop_fails():
+    # V = -exp(q^2)/2 throws q outwards ever faster: the fixed point hands over, and the
+    # shared loop's Newton then fails too, at the same step with the same rows kept
+    q, v = sp.symbols("q v")
+    system = gvi.LagrangianSystem(v**2 / 2 + sp.exp(q**2) / 2, [q], [v])
+    integrator = gvi.Integrator(system, METHODS["gauss2"], specialize="system")
+    run = dict(h=0.01, n_steps=3000, save_every=4, on_failure="warn")
+    with pytest.warns(gvi.RunFailureWarning):
+        generated = integrator.integrate([2.0], [0.0], **run)
+    with pytest.warns(gvi.RunFailureWarning):
+        shared = integrate_smooth(_shared(integrator), [2.0], [0.0], None, **run)
+    assert not generated.success and generated.status == shared.status
+    assert 0 < generated.n_steps == shared.n_steps < 3000
+    assert generated.message == shared.message
+    np.testing.assert_array_equal(generated.t, shared.t)
+    np.testing.assert_allclose(generated.q, shared.q, rtol=1e-13)
+
+
+def test_specialize_system_is_checked_kept_and_pickled():
+    system, q0, v0 = STAGE_CASES["kepler"]
+    with pytest.raises(ValueError, match="specialize must be True, False or \"system\""):
+        gvi.Integrator(system, METHODS["gauss2"], specialize="fast")
+    # the default compiles no stage loop: its first run costs what it did
+    assert gvi.Integrator(system, METHODS["gauss2"]).run_spec.stage_steps is None
+    integrator = gvi.Integrator(system, METHODS["gauss2"], specialize="system")
+    first = integrator.integrate(q0, v0, h=0.05, n_steps=40)
+    copy = pickle.loads(pickle.dumps(integrator))
+    assert copy.specialize == "system" and copy.run_spec.stage_steps is not None
+    np.testing.assert_array_equal(copy.integrate(q0, v0, h=0.05, n_steps=40).q, first.q)
+    # ensembles of it run the shared member loop: the same states
+    many = integrator.integrate_many(np.array([q0, q0]), np.array([v0, v0]), h=0.05, n_steps=40)
+    np.testing.assert_array_equal(many[1].q, first.q)
+
+
+def test_the_generated_stage_text_runs_uncompiled_on_numpy_arrays():
+    system, q0, v0 = STAGE_CASES["henon_heiles"]
+    source = codegen.render_module(codegen.kernel_spec(system), "key")
+    namespace: dict = {}
+    exec(compile(source, "<generated>", "exec"), namespace)
+    integrator = gvi.Integrator(system, METHODS["lobatto3"], specialize="system")
+    compiled = integrator.integrate(q0, v0, h=0.1, n_steps=12, save_every=3)
+    _, _, after = integrator.run_spec.loop_parts()
+    t_out, q_out, p_out, turns = np.zeros(5), np.zeros((5, 2)), np.zeros((5, 2)), np.zeros((1, 2))
+    iterations, total = np.zeros(4, dtype=np.uint8), np.zeros(1, dtype=np.int64)
+    q, v = np.array(q0, float), np.array(v0, float)
+    status, steps, saved, _, _ = namespace["stage_steps"](
+        q, v.copy(), v, 0.0, 0.1, 12, 3, system.parameter_vector(None), *after,
+        t_out, q_out, p_out, turns, iterations, total,
+    )  # fmt: skip
+    assert (status, steps, saved) == (0, 12, 5)
+    np.testing.assert_array_equal(t_out, compiled.t)
+    np.testing.assert_allclose(q_out, compiled.q, rtol=0, atol=1e-15)
+    assert total[0] == compiled.total_newton_iterations
