@@ -37,6 +37,7 @@ __all__ = [
     "indented",
     "render_explicit_steps",
     "row_lines",
+    "saved_row_lines",
     "wrap_lines",
 ]
 
@@ -99,6 +100,15 @@ def row_lines(
             lines.append(f"q_out[{row}, {a}] = {q}_{a}")
         lines.append(f"p_out[{row}, {a}] = {p}_{a}")
     return lines
+
+
+def saved_row_lines(
+    condition: str, t: str, q: str, p: str, n: int, periodic: tuple[bool, ...], lost: str,
+    turns: str,
+) -> list[str]:  # fmt: skip
+    """Lines saving ``(t, q, p)`` as the next row (``saved``) when ``condition`` holds."""
+    row = row_lines("saved", t, q, p, n, periodic, lost, turns)
+    return [f"if {condition}:", *indented(row, 1), "    saved += 1"]
 
 
 def wrap_lines(a: int) -> list[str]:
@@ -181,12 +191,12 @@ def render_explicit_steps(
     sub += [f"f_{a} = g_{a}" for a in range(n)]
     step += indented(sub, 1)
     finite = " and ".join(f"abs({x}_{a}) < 1e300" for a in range(n) for x in ("q", "p"))
-    step += [f"if not ({finite}):", "    if k % save_every != 0:"]
-    step += indented(row_lines("saved", "t0 + k * h", "b", "c", n, periodic, "bl", "br"), 2)
-    step += ["        saved += 1", f"    return {_STATUS_NONFINITE}, k, saved, 0.0, np.nan"]
-    step += ["if (k + 1) % save_every == 0 or k + 1 == n_steps:"]
-    step += indented(row_lines("saved", "t0 + (k + 1) * h", "q", "p", n, periodic, "l", "r"), 1)
-    step += ["    saved += 1"]
+    # the state before a step that overflows is the last row, due or not
+    kept = saved_row_lines("k % save_every != 0", "t0 + k * h", "b", "c", n, periodic, "bl", "br")
+    step += [f"if not ({finite}):", *indented(kept, 1)]
+    step += [f"    return {_STATUS_NONFINITE}, k, saved, 0.0, np.nan"]
+    due = "(k + 1) % save_every == 0 or k + 1 == n_steps"
+    step += saved_row_lines(due, "t0 + (k + 1) * h", "q", "p", n, periodic, "l", "r")
     body += indented(step, 1)
     body.append(f"return {_STATUS_OK}, n_steps, saved, 0.0, np.nan")
     return lines + indented(body, 1)

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import re
 
-from .explicit_steps import indented, row_lines, wrap_lines
+from .explicit_steps import indented, row_lines, saved_row_lines, wrap_lines
 
 __all__ = ["render_stage_steps"]
 
@@ -188,11 +188,11 @@ def render_stage_steps(
         "previous = increment",
     ]
     step += ["while its < maxiter:", *indented(sweep, 1)]
-    # a step the fixed point cannot take: the state before it is the last row
-    handover = ["if k % save_every != 0:"]
-    handover += indented(row_lines("saved", "tk", "q", "p", n, periodic, "l", "r"), 1)
-    handover += ["    saved += 1", "return status, k, saved, worst, increment"]
-    step += [f"if status == {_STATUS_NEWTON_FAILED}:", *indented(handover, 1)]
+    # a step the fixed point cannot take (or that fails): the state before it is the
+    # last row, due for saving or not
+    kept = saved_row_lines("k % save_every != 0", "tk", "q", "p", n, periodic, "l", "r")
+    kept.append("return status, k, saved, worst, increment")
+    step += [f"if status == {_STATUS_NEWTON_FAILED}:", *indented(kept, 1)]
     step += [
         "slot = k // save_every",
         "if its > iterations_out[slot]:",
@@ -223,10 +223,7 @@ def render_stage_steps(
     finite = " and ".join(f"abs(C[s - 1, {a}]) < 1e300 and abs(d_{a}) < 1e300" for a in coords)
     end += [f"if not ({finite}):", f"    status = {_STATUS_NONFINITE}"]
     step += indented(end, 1)
-    failed = ["if k % save_every != 0:"]
-    failed += indented(row_lines("saved", "tk", "q", "p", n, periodic, "l", "r"), 1)
-    failed += ["    saved += 1", "return status, k, saved, worst, increment"]
-    step += [f"if status != {_STATUS_OK}:", *indented(failed, 1)]
+    step += [f"if status != {_STATUS_OK}:", *indented(kept, 1)]
     step += ["if residual > worst:", "    worst = residual"]
     for a in coords:
         # compensated (Kahan) sums, as the shared loop's compensated_add and advance_position
@@ -251,9 +248,8 @@ def render_stage_steps(
         ]
     for a in angles:
         step += wrap_lines(a)
-    step += ["if (k + 1) % save_every == 0 or k + 1 == n_steps:"]
-    step += indented(row_lines("saved", "t0 + (k + 1) * h", "q", "p", n, periodic, "l", "r"), 1)
-    step += ["    saved += 1"]
+    due = "(k + 1) % save_every == 0 or k + 1 == n_steps"
+    step += saved_row_lines(due, "t0 + (k + 1) * h", "q", "p", n, periodic, "l", "r")
     body += indented(step, 1)
     body.append(f"return {_STATUS_OK}, n_steps, saved, worst, 0.0")
     return lines + indented(body, 1)
