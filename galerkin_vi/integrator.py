@@ -56,11 +56,12 @@ class Integrator:
         ``"system"`` also runs the stage-form loop (``"separable"`` path) of a small
         system with a diagonal constant mass as a loop generated for that system
         (:mod:`galerkin_vi.codegen.stage_steps`: its coordinates as scalars, its
-        force inline; the same steps bit for bit, in about two thirds of the time
-        where a step is a few sweeps of a cheap force), at the price of compiling
-        it: 1.5–4 s once per system and machine, cached on disk. The explicit path
-        (compositions, Störmer–Verlet) runs its generated loop with either true
-        value: it compiles in a fraction of a second.
+        force inline; the same steps bit for bit up to a step that needs Newton, in
+        about two thirds of the time where a step is a few sweeps of a cheap force), at the price of compiling
+        it: 1.5–4 s once per system and machine, cached on disk. With either true
+        value the explicit path (compositions, Störmer–Verlet) runs the loop generated
+        for the system, which compiles in a fraction of a second; ``False`` keeps the
+        shared loops (compositions still take the explicit path).
     fixed_point : bool or "persistent"
         With a mass matrix that varies, iterate the stage velocities by fixed
         point (the ``"varying_mass"`` loop; default) rather than by Newton. The
@@ -233,7 +234,7 @@ class Integrator:
             self._points,
             constant_mass=self.uses_constant_mass,
             hand_over=hand_over(self.fixed_point),
-            per_system=self.specialize == "system",
+            specialize=self.specialize,
         )
 
     @cached_property

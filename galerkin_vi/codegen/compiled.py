@@ -78,12 +78,16 @@ def _c_signatures() -> dict:
 
 @cache
 def generator_fingerprint() -> str:
-    """The code generator's version and a hash of its sources (codegen/*.py and the
-    repeated-term analysis it reads): a point-function key remembered by an earlier
+    """The code generator's version and a hash of its sources (codegen/*.py, the
+    repeated-term analysis it reads, and the loops, whose stopping rule the generated
+    stage-form loop compiles in): a point-function key remembered by an earlier
     process is trusted only under the same fingerprint and numba version."""
     h = hashlib.sha256(GENERATOR_VERSION.encode())
     here = Path(__file__).resolve().parent
-    for path in sorted(here.glob("*.py")) + [here.parent / "model" / "terms.py"]:
+    package = here.parent
+    sources = sorted(here.glob("*.py")) + [package / "model" / "terms.py"]
+    sources += sorted((package / "loops").glob("*.py")) + [package / "newton.py"]
+    for path in sources:
         h.update(path.read_bytes())
     return h.hexdigest()[:16]
 

@@ -33,7 +33,7 @@ import sympy as sp
 
 __all__ = [
     "EXPLICIT_UNROLLED",
-    "explicit_forces",
+    "has_generated_loops",
     "indented",
     "render_explicit_steps",
     "row_lines",
@@ -53,32 +53,23 @@ _TWO_PI_HI = 6.283185307179586
 _TWO_PI_LO = 2.4492935982947064e-16
 
 
-def explicit_forces(
-    system, pieces, rename: dict, repeated: bool
-) -> tuple[tuple[str, sp.Expr], ...]:
-    r"""Entries ``("g_a", F_a)`` of the generated explicit loop, or () when it has none.
+def has_generated_loops(system, pieces, repeated: bool) -> bool:
+    r"""Whether the generator writes the system's own explicit loop (and, with a
+    diagonal mass, stage-form loop).
 
-    :math:`F = L_q + f` at :math:`v = 0` in the scalars ``q_a``. Generated for a
-    separable :math:`L = \tfrac12 v^TMv - V(t, q)` (constant :math:`M`, no
+    For a separable :math:`L = \tfrac12 v^TMv - V(t, q)` (constant :math:`M`, no
     gyroscopic term, forces free of :math:`v`) without constraints, of at most
     :data:`EXPLICIT_UNROLLED` coordinates, and without repeated terms: where the
     point functions loop over a pair potential, the force is most of a sub-step
     and written out it takes seconds to compile (docs/performance.md).
     """
     structure = system.structure
-    n = system.n
-    if repeated or system.m or n > EXPLICIT_UNROLLED:
-        return ()
+    if repeated or system.m or system.n > EXPLICIT_UNROLLED:
+        return False
     if not (structure.separable and structure.zero_fv):
-        return ()
+        return False
     at_rest = {v: sp.Integer(0) for v in system.v}
-    if any(e.xreplace(at_rest) != 0 for e in pieces.Lv):
-        return ()
-    scalars = {rename[q]: sp.Symbol(f"q_{a}", real=True) for a, q in enumerate(system.q)}
-    return tuple(
-        (f"g_{a}", sp.sympify(e).xreplace(at_rest).xreplace(rename).xreplace(scalars))
-        for a, e in enumerate(pieces.force)
-    )
+    return all(e.xreplace(at_rest) == 0 for e in pieces.Lv)
 
 
 def indented(lines: list[str], depth: int) -> list[str]:
@@ -143,9 +134,12 @@ def render_explicit_steps(
     less the point functions and the compiled switches: ``(q0, p0, t0, h, n_steps,
     save_every, prm, Minv, drift, kick_before, kick_after, nodes, t_out, q_out,
     p_out, turns_out)``. ``force`` holds the lines, unindented, that set ``g_a`` from
-    ``t``, the scalars ``q_a`` and ``prm`` (the entries of :func:`explicit_forces`).
+    ``t``, the scalars ``q_a`` and ``prm`` (the point function's text, :func:`.source.at_rest`).
     """
     angles = [a for a in range(n) if periodic[a]]
+    # with any angle the shared loop drifts every coordinate with compensation (its
+    # switch is the whole mask), and so does this one
+    compensated = list(range(n)) if angles else []
     lines = [
         "",
         "",
@@ -153,7 +147,7 @@ def render_explicit_steps(
         " kick_after, nodes, t_out, q_out, p_out, turns_out):",
     ]
     body = [f"q_{a} = q0[{a}]" for a in range(n)] + [f"p_{a} = p0[{a}]" for a in range(n)]
-    body += [f"l_{a} = 0.0" for a in angles] + [f"r_{a} = 0.0" for a in angles]
+    body += [f"l_{a} = 0.0" for a in compensated] + [f"r_{a} = 0.0" for a in angles]
     for a in angles:
         body += wrap_lines(a)
     weights = {
@@ -166,14 +160,14 @@ def render_explicit_steps(
     body += ["saved = 1", "for k in range(n_steps):"]
     step = [f"b_{a} = q_{a}" for a in range(n)] + [f"c_{a} = p_{a}" for a in range(n)]
     step += [f"bl_{a} = l_{a}" for a in angles] + [f"br_{a} = r_{a}" for a in angles]
-    step += ["for i in range(m):"]
+    step += ["finite = True", "for i in range(m):"]
     sub = ["eta = drift[i] * h", "before = kick_before[i] * h", "after = kick_after[i] * h"]
     if not autonomous:
         sub.append("t = t0 + (k + nodes[i]) * h")
     sub += [f"u_{a} = p_{a} + before * f_{a}" for a in range(n)]
     for a in range(n):
         product = " + ".join(f"{weights[a, b]} * u_{b}" for b in range(n) if (a, b) in weights)
-        if periodic[a]:
+        if compensated:
             # compensated, so that whole turns can be removed exactly
             sub += [
                 f"_y = eta * ({product}) - l_{a}",
@@ -189,11 +183,13 @@ def render_explicit_steps(
     sub += force
     sub += [f"p_{a} += before * f_{a} + after * g_{a}" for a in range(n)]
     sub += [f"f_{a} = g_{a}" for a in range(n)]
+    # every sub-step's state is tested, as in the shared loop
+    bounded = " and ".join(f"abs({x}_{a}) < 1e300" for a in range(n) for x in ("p", "q"))
+    sub += [f"if not ({bounded}):", "    finite = False"]
     step += indented(sub, 1)
-    finite = " and ".join(f"abs({x}_{a}) < 1e300" for a in range(n) for x in ("q", "p"))
     # the state before a step that overflows is the last row, due or not
     kept = saved_row_lines("k % save_every != 0", "t0 + k * h", "b", "c", n, periodic, "bl", "br")
-    step += [f"if not ({finite}):", *indented(kept, 1)]
+    step += ["if not finite:", *indented(kept, 1)]
     step += [f"    return {_STATUS_NONFINITE}, k, saved, 0.0, np.nan"]
     due = "(k + 1) % save_every == 0 or k + 1 == n_steps"
     step += saved_row_lines(due, "t0 + (k + 1) * h", "q", "p", n, periodic, "l", "r")

@@ -18,6 +18,7 @@ in the order of the sparsity pattern.
 
 from __future__ import annotations
 
+import re
 from functools import lru_cache
 
 import numpy as np
@@ -368,15 +369,37 @@ def _constraint_functions(spec: KernelSpec) -> list[str]:
     ]
 
 
-def _mass_diagonal(spec: KernelSpec) -> list[str]:
-    """The printed diagonal of the constant mass matrix (its ``Lvv`` entries)."""
-    entries = dict(spec.hessian_entries)
-    printer = KernelPrinter()
+_SLOT = re.compile(r"^    (\w+)(\[\d+\])? (\+?=) (.*)$")
+
+
+def at_rest(body: list[str], targets: dict[str, str]) -> list[str]:
+    """A point function's body as lines of a generated loop: at the scalars ``q_a``,
+    at ``v = 0``, unindented, keeping the assignments to ``targets``.
+
+    ``targets`` maps an array (``"Lq"``: every entry ``Lq[a]`` to ``g_a``) or one
+    entry (``"Lvv[3]"``) to the scalar it becomes; assignments to other slots are
+    left out (their temporaries stay: numba drops what nothing reads). The
+    expressions are the point function's text, so they round as it does.
+    """
     out = []
-    for a in range(spec.n):
-        k = spec.pattern.index((a, a)) if spec.banded else a * spec.n + a
-        entry = entries.get(f"Lvv[{k}]")
-        out.append("0.0" if entry is None else f"float({printer.doprint(entry)})")
+    for line in body:
+        if line == "    pass":
+            continue
+        match = _SLOT.match(line)
+        if match is None:
+            raise ValueError(f"unexpected line in a point function: {line!r}")
+        target, index, op, expr = match.groups()
+        if index is not None:
+            slot = target + index
+            if slot in targets:
+                target = targets[slot]
+            elif target in targets:
+                target = f"{targets[target]}_{index[1:-1]}"
+            else:
+                continue
+        expr = re.sub(r"\bq\[(\d+)\]", r"q_\1", expr)
+        expr = re.sub(r"\bv\[\d+\]", "0.0", expr)
+        out.append(f"{target} {op} {expr}")
     return out
 
 
@@ -416,18 +439,24 @@ def render_module(spec: KernelSpec, key: str) -> str:
         # straight-line code (no scatter loops: systems with repeated terms have none)
         functions.append(_point_function("point_velocity", list(spec.velocity_entries), large))
     steps = []
-    if spec.explicit_forces:
-        if not large:
-            head.append("import numpy as np")
-        force = [line[4:] for line in _function_body(list(spec.explicit_forces))]
+    if spec.generated_loops and not large:
+        # the force and the mass as the point functions compute them (the same text, so
+        # the same rounding), at v = 0, into scalars
+        head.append("import numpy as np")
+        gradient = _function_body(list(spec.gradient_entries))
+        force = [f"g_{a} = 0.0" for a in range(spec.n)] + at_rest(gradient, {"Lq": "g"})
         steps = render_explicit_steps(
             force, spec.n, spec.periodic, spec.diagonal_mass, spec.autonomous
         )
         if has_stage_steps(spec):
             head += ["", *STAGE_IMPORTS]
-            steps += render_stage_steps(
-                force, _mass_diagonal(spec), spec.n, spec.periodic, spec.autonomous
-            )
+            hessian = _function_body(list(spec.hessian_entries))
+            diagonal = {
+                f"Lvv[{spec.pattern.index((a, a)) if spec.banded else a * spec.n + a}]": f"m_{a}"
+                for a in range(spec.n)
+            }
+            mass = [f"m_{a} = 0.0" for a in range(spec.n)] + at_rest(hessian, diagonal)
+            steps += render_stage_steps(force, mass, spec.n, spec.periodic, spec.autonomous)
     tables = [
         _table_literal(f"{group.name}_{what}", array)
         for group in spec.repeats

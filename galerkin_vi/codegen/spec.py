@@ -25,7 +25,7 @@ from ..expression_walk import structural_bytes
 from ..method.stage_form import has_stage_form
 from ..model.symbolic import pointwise_pieces, without_point_masses
 from ..model.terms import repeated_terms
-from .explicit_steps import explicit_forces
+from .explicit_steps import has_generated_loops
 from .scatter import ScatterGroup, scatter_group
 
 if TYPE_CHECKING:
@@ -65,9 +65,9 @@ class KernelSpec:
     With ``repeats``, the point functions are the scatter loops of the repeated
     terms of :math:`L` (:mod:`.scatter`) plus the entries, which then hold
     only the rest: the derivatives of the terms that do not repeat and of the
-    forces, and ``lagrangian`` the sum of those terms. ``explicit_forces``
-    holds the force of a small separable system's generated explicit loop
-    (:mod:`.explicit_steps`), empty for every other system.
+    forces, and ``lagrangian`` the sum of those terms. ``generated_loops``:
+    the module also holds the system's own explicit loop (:mod:`.explicit_steps`)
+    and, with a diagonal mass, stage-form loop (:mod:`.stage_steps`).
     """
 
     n: int
@@ -79,7 +79,7 @@ class KernelSpec:
     hessian_entries: tuple[tuple[str, sp.Expr], ...]
     mass_entries: tuple[tuple[str, sp.Expr], ...] = ()
     velocity_entries: tuple[tuple[str, sp.Expr], ...] = ()
-    explicit_forces: tuple[tuple[str, sp.Expr], ...] = ()
+    generated_loops: bool = False
     pattern: tuple[tuple[int, int], ...] = ()
     half_bandwidth: int = 0
     banded: bool = False
@@ -241,7 +241,7 @@ def kernel_spec(system: LagrangianSystem, repeats: bool = True) -> KernelSpec:
         hessian_entries=tuple(hessian),
         mass_entries=tuple(mass),
         velocity_entries=() if groups else _velocity_entries(system, rename),
-        explicit_forces=explicit_forces(system, p, rename, bool(groups)),
+        generated_loops=has_generated_loops(system, p, bool(groups)),
         pattern=pattern if banded else (),
         half_bandwidth=half_bandwidth,
         banded=banded,
@@ -448,6 +448,7 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
                 spec.periodic,
                 spec.separable,
                 spec.diagonal_mass,
+                spec.generated_loops,
             )
         ),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.constraint_parts),
@@ -458,7 +459,6 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
         *(f"{k}={sp.srepr(e)}" for k, e in spec.gradient_entries),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.mass_entries),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.velocity_entries),
-        *(f"{k}={sp.srepr(e)}" for k, e in spec.explicit_forces),
         *(_group_text(group) for group in spec.repeats),
         # the generated stage-form loop inlines the shared loop's stopping rule: compiled
         # anew with every version of the loops
@@ -479,7 +479,7 @@ def _loop_version() -> str:
 def has_stage_steps(spec: KernelSpec) -> bool:
     """Whether the point module of ``spec`` holds the generated stage-form loop
     (:mod:`.stage_steps`): a system with the generated explicit loop and a diagonal M."""
-    return bool(spec.explicit_forces) and spec.diagonal_mass
+    return spec.generated_loops and spec.diagonal_mass
 
 
 def _group_text(group: ScatterGroup) -> str:

@@ -2,7 +2,7 @@ r"""The stage-form loop generated for one small system: its coordinates as scala
 force inline, the constant-mass fixed point only.
 
 For a separable :math:`L = \tfrac12 v^TMv - V(t, q)` with constant diagonal
-:math:`M` (the systems of :func:`.explicit_steps.explicit_forces` whose mass is
+:math:`M` (the systems of :func:`.explicit_steps.has_generated_loops` whose mass is
 diagonal), the stage form's unknowns are the increments :math:`Z_i` at the
 implicit quadrature points (:mod:`galerkin_vi.loops.stage_form`), and the
 cheap iteration is the fixed point
@@ -50,7 +50,7 @@ IMPORTS = [
 
 def render_stage_steps(
     force: list[str],
-    masses: list[str],
+    mass: list[str],
     n: int,
     periodic: tuple[bool, ...],
     autonomous: bool,
@@ -64,8 +64,9 @@ def render_stage_steps(
     reuse_endpoint, tol, maxiter, cheap_first, t_out, q_out, p_out, turns_out,
     iterations_out, iteration_total)``; its result is the loop's 5-tuple, with
     status 1 (``STATUS_NEWTON_FAILED``) where it hands the run over. ``force`` holds
-    the unindented lines that set ``g_a`` from ``t``, ``q_a`` and ``prm``;
-    ``masses`` the expressions of the diagonal of :math:`M` (in ``prm``).
+    the unindented lines that set ``g_a`` from ``t``, ``q_a`` and ``prm``, ``mass``
+    those that set the diagonal ``m_a`` of the constant :math:`M` (the point
+    functions' text, :func:`.source.at_rest`).
     """
     angles = [a for a in range(n) if periodic[a]]
     coords = range(n)
@@ -79,8 +80,9 @@ def render_stage_steps(
         " iterations_out, iteration_total):",
     ]
     body = ["r = b.shape[0]", "s = control_p.shape[0]", "u = implicit.shape[0]"]
-    body += [f"m_{a} = {masses[a]}" for a in coords]
     body += [f"q_{a} = q0[{a}]" for a in coords] + [f"p_{a} = p0[{a}]" for a in coords]
+    # M as the shared loop forms it: the Hessian point function at (t0, q0, 0)
+    body += ["t = t0", *mass]
     body += [f"l_{a} = 0.0" for a in coords] + [f"e_{a} = 0.0" for a in coords]
     body += [f"r_{a} = 0.0" for a in angles]
     for a in angles:
@@ -140,7 +142,8 @@ def render_stage_steps(
         "increment = 0.0",
         "residual = 0.0",
         "current = False",
-        f"status = {_STATUS_NEWTON_FAILED}",
+        # no implicit point (two Lobatto points): nothing to iterate, as in the shared loop
+        f"status = {_STATUS_NEWTON_FAILED} if u > 0 else {_STATUS_OK}",
         "previous = np.inf",
         "base = 0.0",
     ]
@@ -187,7 +190,7 @@ def render_stage_steps(
         "    break",
         "previous = increment",
     ]
-    step += ["while its < maxiter:", *indented(sweep, 1)]
+    step += ["while u > 0 and its < maxiter:", *indented(sweep, 1)]
     # a step the fixed point cannot take (or that fails): the state before it is the
     # last row, due for saving or not
     kept = saved_row_lines("k % save_every != 0", "tk", "q", "p", n, periodic, "l", "r")

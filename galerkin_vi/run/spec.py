@@ -266,14 +266,15 @@ def compiled_run_spec(
     constant_mass: bool,
     hand_over: HandOver = EARLY_HAND_OVER,
     hessian: bool = False,
-    per_system: bool = False,
+    specialize: bool | str = True,
 ) -> RunSpec:
     """The :class:`RunSpec` of the compiled loops: ``summary`` is the system's
     :class:`~galerkin_vi.codegen.SpecSummary`, ``points`` its compiled point functions
     (loaded or compiled here, those the loop of ``path`` reads; with ``hessian``, the
     Hessian too, for the explicit path's tangent map), ``hand_over`` the varying-mass
-    loop's rule (:func:`galerkin_vi.run.loop_choice.hand_over`), ``per_system`` whether
-    the separable path runs the system's generated stage-form loop where it has one."""
+    loop's rule (:func:`galerkin_vi.run.loop_choice.hand_over`), ``specialize`` the
+    integrator's: the explicit path runs the system's generated loop where it has one
+    unless it is False, the separable path only with ``"system"``."""
     velocity = bool(summary.explicit_velocity)
     names = point_function_names(path, summary.m, hessian, velocity)
     fn = tuple(int(address) for address in points.addresses(names))
@@ -282,9 +283,10 @@ def compiled_run_spec(
     couplings = (summary.has_Lqv, summary.has_fv)
     band = constrained_band(system, method.degree) if path == "constrained" else None
     # the tangent map's explicit loop is the shared one (its states are that loop's)
-    steps = None if path != "explicit" or hessian else points.generated_loop("explicit_steps")
+    explicit = path == "explicit" and not hessian and specialize
+    steps = points.generated_loop("explicit_steps") if explicit else None
     # the generated stage-form loop iterates the constant-mass fixed point only
-    separable = path == "separable" and constant_mass and per_system
+    separable = path == "separable" and constant_mass and specialize == "system"
     stages = points.generated_loop("stage_steps") if separable else None
     return RunSpec(
         system, method, path, "numba", tol, maxiter, model=model,
