@@ -57,8 +57,9 @@ class Integrator:
         system with a diagonal constant mass as a loop generated for that system
         (:mod:`galerkin_vi.codegen.stage_steps`: its coordinates as scalars, its
         force inline; the same steps bit for bit up to a step that needs Newton, in
-        about two thirds of the time where a step is a few sweeps of a cheap force), at the price of compiling
-        it: 1.5–4 s once per system and machine, cached on disk. With either true
+        about two thirds of the time where a step is a few sweeps of a cheap
+        force), at the price of compiling it: 1.5–4 s once per system and machine,
+        cached on disk. With either true
         value the explicit path (compositions, Störmer–Verlet) runs the loop generated
         for the system, which compiles in a fraction of a second; ``False`` keeps the
         shared loops (compositions still take the explicit path).

@@ -72,6 +72,19 @@ def _shared(integrator: gvi.Integrator):
     return dataclasses.replace(integrator.run_spec, explicit_steps=None, stage_steps=None)
 
 
+def _hand_overs(monkeypatch) -> list[tuple[int, str]]:
+    """(step, path) of each hand-over of a generated loop to a shared one, as they happen."""
+    handed = []
+    original = segment.continue_from_last_row
+
+    def spy(spec, run, out, result, path):
+        handed.append((result.steps, path))
+        return original(spec, run, out, result, path)
+
+    monkeypatch.setattr(segment, "continue_from_last_row", spy)
+    return handed
+
+
 def _driven_pendulum() -> gvi.LagrangianSystem:
     # separable, not quadratic, and time-dependent: the stage-form path with t in the force
     q, v, t = sp.symbols("q v t")
@@ -249,14 +262,7 @@ def test_specialize_false_keeps_the_shared_explicit_loop():
 def test_a_step_the_fixed_point_cannot_take_goes_to_the_shared_loops_newton(monkeypatch):
     system, q0, v0 = STAGE_CASES["pendulum_rotating"]
     integrator = gvi.Integrator(system, METHODS["gauss2"], specialize="system")
-    handed = []
-    original = segment.continue_from_last_row
-
-    def spy(spec, run, out, result, path):
-        handed.append((result.steps, path))
-        return original(spec, run, out, result, path)
-
-    monkeypatch.setattr(segment, "continue_from_last_row", spy)
+    handed = _hand_overs(monkeypatch)
     # h = 0.3: the fixed point contracts too slowly a few steps in (measured: step 2)
     run = dict(h=0.3, n_steps=200, save_every=3)
     generated = integrator.integrate(q0, v0, **run)
@@ -278,14 +284,7 @@ def test_a_run_whose_steps_fail_fails_where_the_shared_loop_fails(monkeypatch):
     q, v = sp.symbols("q v")
     system = gvi.LagrangianSystem(v**2 / 2 + sp.exp(q**2) / 2, [q], [v])
     integrator = gvi.Integrator(system, METHODS["gauss2"], specialize="system")
-    handed = []
-    original = segment.continue_from_last_row
-
-    def spy(spec, run, out, result, path):
-        handed.append((result.steps, path))
-        return original(spec, run, out, result, path)
-
-    monkeypatch.setattr(segment, "continue_from_last_row", spy)
+    handed = _hand_overs(monkeypatch)
     run = dict(h=0.01, n_steps=3000, save_every=4, on_failure="warn")
     with pytest.warns(gvi.RunFailureWarning):
         generated = integrator.integrate([2.0], [0.0], **run)
