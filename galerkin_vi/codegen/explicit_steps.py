@@ -6,10 +6,12 @@ compositions of Störmer–Verlet through arrays of run-time length and one call
 of the point function per sub-step. For a system of a few coordinates that
 bookkeeping is most of a sub-step. For such systems the generator writes the
 same loop once more, for this system alone: the coordinates and momenta are
-local scalars, the force :math:`F(t, q) = L_q + f` is the common-subexpression
-form of its SymPy expression written where it is used, and only the
-parameters, :math:`M^{-1}` and the sub-step fractions stay arguments (one
-compiled function serves every composition, step and parameter value).
+local scalars, the force :math:`F(t, q) = L_q + f` is the point function's own
+text at :math:`v = 0` (:func:`.source.at_rest`: the same common subexpressions,
+so the same rounding) written where it is used, and only the parameters,
+:math:`M^{-1}` and the sub-step fractions stay arguments (one compiled function
+serves every composition, step and parameter value). The states are the shared
+loop's bit for bit.
 
 A sub-step with drift :math:`a_i` and kicks :math:`\beta^\pm_i` is the shared
 loop's, with :math:`a(t) = L_v(t, q, 0) \equiv 0` (systems with a gyroscopic
@@ -21,9 +23,10 @@ term keep the shared loop):
     q' = q + a_i h\,M^{-1}u,\quad
     p' = p + h\big(\beta^-_i F(\tau_{i-1}, q) + \beta^+_i F(\tau_i, q')\big),
 
-the force at a sub-step's end being the next one's start. Angles are drifted
-with compensated summation and wrapped into :math:`[-\pi, \pi)` once per step,
-as in the shared loop, whose arguments, outputs and 5-tuple result the
+the force at a sub-step's end being the next one's start. With any angle
+among the coordinates every coordinate is drifted with compensated summation,
+and the angles are wrapped into :math:`[-\pi, \pi)` once per step, as in the
+shared loop, whose arguments, outputs and 5-tuple result the
 generated function shares (:mod:`galerkin_vi.loops.abi`).
 """
 

@@ -15,7 +15,8 @@ cheap iteration is the fixed point
 The generated function runs the shared loop's steps with that iteration (the
 same first iterate from extrapolated forces, the same stopping rule, the same
 end of step and compensated sums, so the same states bit for bit), with the
-coordinates and momenta as local scalars and the force written where it is
+coordinates and momenta as local scalars and the force and the mass as the
+point functions' own text (:func:`.source.at_rest`) written where they are
 used, for every Gauss or Lobatto method at once: the stage loops run over the
 method's tables, which stay arguments. Where the shared loop would hand a step
 over to full Newton (the fixed point contracts too slowly, or fails), the
