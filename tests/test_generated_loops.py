@@ -14,6 +14,7 @@ import sympy as sp
 import galerkin_vi as gvi
 from galerkin_vi import codegen
 from galerkin_vi.codegen.explicit_steps import EXPLICIT_UNROLLED
+from galerkin_vi.codegen.spec import LARGE
 from galerkin_vi.problems.chains import spring_chain
 from galerkin_vi.problems.forced import driven_oscillator
 from galerkin_vi.problems.gravitation import kepler
@@ -48,6 +49,13 @@ def _angle_and_length() -> gvi.LagrangianSystem:
     x, y, vx, vy = sp.symbols("x y vx vy")
     L = (vx**2 + vy**2) / 2 + sp.cos(x) - y**2 / 2 + y * sp.cos(x) / 10
     return gvi.LagrangianSystem(L, [x, y], [vx, vy])
+
+
+def _oscillators(n: int) -> gvi.LagrangianSystem:
+    # n uncoupled anharmonic oscillators: few second derivatives for n coordinates
+    qs, vs = sp.symbols(f"q0:{n}"), sp.symbols(f"v0:{n}")
+    L = sum(w**2 / 2 - x**2 / 2 - x**4 / 4 for x, w in zip(qs, vs, strict=True))
+    return gvi.LagrangianSystem(L, list(qs), list(vs))
 
 
 def _quartic() -> gvi.LagrangianSystem:
@@ -151,9 +159,15 @@ def test_which_systems_get_a_generated_loop():
     # a mass that varies: no explicit path at all
     assert not has_steps(gvi.LagrangianSystem((1 + q**2) * v**2 / 2 - q**2 / 2, [q], [v]))
     # too many coordinates to be scalars: the force dominates, the shared loop runs them
-    assert has_steps(spring_chain(EXPLICIT_UNROLLED, beta=0.5).system)
-    big = gvi.Integrator(spring_chain(EXPLICIT_UNROLLED + 1, beta=0.5).system, gvi.Composition(4))
-    assert big.run_spec.explicit_steps is None
+    assert has_steps(_oscillators(EXPLICIT_UNROLLED))
+    many = gvi.Integrator(_oscillators(EXPLICIT_UNROLLED + 1), gvi.Composition(4))
+    assert many.run_spec.explicit_steps is None
+    # point functions generated in parts (more second derivatives than LARGE), which the
+    # loops would have to copy: none, and the module holds none
+    chain = spring_chain(EXPLICIT_UNROLLED, beta=0.5).system
+    assert len(codegen.kernel_spec(chain).hessian_entries) > LARGE and not has_steps(chain)
+    assert "def explicit_steps" not in gvi.Integrator(chain, gvi.Composition(4)).source
+    assert "def explicit_steps" in gvi.Integrator(_oscillators(3), gvi.Composition(4)).source
     # the tangent map keeps the shared loop (whose states it carries bit for bit)
     small = gvi.Integrator(henon_heiles().system, gvi.Composition(4))
     assert small.tangent_run_spec.explicit_steps is None

@@ -228,6 +228,26 @@ def test_users_numba_code_compiles_with_numbas_originals_after_issue_30_runs():
     assert result == dict.fromkeys(result, True) and len(result) == 6
 
 
+def test_users_numba_code_compiles_with_numbas_originals_after_generated_loops():
+    # the loops generated per system compile on first call, after their cache locator
+    # was registered for their decoration only: nothing of it stays for the user's code
+    result = _originals_after(
+        """
+        from galerkin_vi.problems import henon_heiles
+
+        problem = henon_heiles()
+        composed = gvi.Integrator(problem.system, gvi.Composition(6))
+        assert composed.run_spec.explicit_steps is not None
+        assert composed.integrate(problem.q0, problem.v0, h=0.05, n_steps=5).success
+        gauss = gvi.Galerkin(2, gvi.gauss_legendre(2))
+        staged = gvi.Integrator(problem.system, gauss, specialize="system")
+        assert staged.run_spec.stage_steps is not None
+        assert staged.integrate(problem.q0, problem.v0, h=0.05, n_steps=5).success
+        """
+    )
+    assert result == dict.fromkeys(result, True) and len(result) == 6
+
+
 def test_compiling_installs_its_replacements_only_inside_and_restores_them():
     from numba.core import inline_closurecall, ir, postproc
 

@@ -145,7 +145,6 @@ class PointFunctions:
             out[POINT_SLOTS[name]] = _body_address(compiled)
         return out
 
-
     def generated_loop(self, name: str) -> Callable | None:
         """The system's generated loop ``name`` (``"explicit_steps"``, ``"stage_steps"``:
         :mod:`.explicit_steps`, :mod:`.stage_steps`), or None when it has none.

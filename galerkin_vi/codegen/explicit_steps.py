@@ -56,18 +56,19 @@ _TWO_PI_HI = 6.283185307179586
 _TWO_PI_LO = 2.4492935982947064e-16
 
 
-def has_generated_loops(system, pieces, repeated: bool) -> bool:
+def has_generated_loops(system, pieces) -> bool:
     r"""Whether the generator writes the system's own explicit loop (and, with a
     diagonal mass, stage-form loop).
 
     For a separable :math:`L = \tfrac12 v^TMv - V(t, q)` (constant :math:`M`, no
     gyroscopic term, forces free of :math:`v`) without constraints, of at most
-    :data:`EXPLICIT_UNROLLED` coordinates, and without repeated terms: where the
-    point functions loop over a pair potential, the force is most of a sub-step
-    and written out it takes seconds to compile (docs/performance.md).
+    :data:`EXPLICIT_UNROLLED` coordinates. :func:`.spec.kernel_spec` also asks for
+    straight-line point functions, which the loops copy: no repeated terms (where
+    the point functions loop over a pair potential, the force is most of a
+    sub-step, and written out it takes seconds to compile: docs/performance.md).
     """
     structure = system.structure
-    if repeated or system.m or system.n > EXPLICIT_UNROLLED:
+    if system.m or system.n > EXPLICIT_UNROLLED:
         return False
     if not (structure.separable and structure.zero_fv):
         return False

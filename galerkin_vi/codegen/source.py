@@ -28,7 +28,7 @@ from ..printer import KernelPrinter
 from .explicit_steps import render_explicit_steps
 from .repeats import Run, find_runs
 from .scatter import ScatterGroup
-from .spec import KernelSpec, has_stage_steps
+from .spec import LARGE, KernelSpec, has_stage_steps
 from .stage_steps import IMPORTS as STAGE_IMPORTS
 from .stage_steps import render_stage_steps
 
@@ -50,8 +50,6 @@ FUNCTIONS = {
 # numba's compile time grows faster than linearly with a function's length: large
 # point functions are split into parts of this many entries, compiled separately
 POINT_CHUNK = 200
-# a function with more entries than this is split into parts
-LARGE = 120
 # Python's parser nests a + b + c + ... one level per operator: long sums are
 # accumulated in chunks (a Lagrangian of 1000 springs otherwise fails to compile)
 _SUM_CHUNK = 32
@@ -439,18 +437,18 @@ def render_module(spec: KernelSpec, key: str) -> str:
         # straight-line code (no scatter loops: systems with repeated terms have none)
         functions.append(_point_function("point_velocity", list(spec.velocity_entries), large))
     steps = []
-    if spec.generated_loops and not large:
-        # the force and the mass as the point functions compute them (the same text, so
-        # the same rounding), at v = 0, into scalars
+    if spec.generated_loops:
+        # the force and the mass as the point functions compute them (their text, so the
+        # same rounding; straight-line code, as a system with generated loops is not
+        # large), at v = 0, into scalars
         head.append("import numpy as np")
-        gradient = _function_body(list(spec.gradient_entries))
+        gradient, hessian = functions[0][0][3:], functions[1][0][3:]
         force = [f"g_{a} = 0.0" for a in range(spec.n)] + at_rest(gradient, {"Lq": "g"})
         steps = render_explicit_steps(
             force, spec.n, spec.periodic, spec.diagonal_mass, spec.autonomous
         )
         if has_stage_steps(spec):
             head += ["", *STAGE_IMPORTS]
-            hessian = _function_body(list(spec.hessian_entries))
             diagonal = {
                 f"Lvv[{spec.pattern.index((a, a)) if spec.banded else a * spec.n + a}]": f"m_{a}"
                 for a in range(spec.n)

@@ -34,6 +34,7 @@ if TYPE_CHECKING:
 __all__ = [
     "GENERATOR_VERSION",
     "KernelSpec",
+    "LARGE",
     "has_stage_steps",
     "MIN_REPEATS",
     "REPEATS_FROM",
@@ -50,6 +51,8 @@ GENERATOR_VERSION = "12"
 
 #: the fewest instances of a term that become a scatter loop (:mod:`.scatter`)
 MIN_REPEATS = 8
+#: a point function with more entries than this is generated in parts (:mod:`.source`)
+LARGE = 120
 #: systems with more second-derivative entries than this have their repeated terms
 #: generated as scatter loops; smaller ones as straight-line code with joint
 #: common-subexpression elimination (faster per call, and quick to compile)
@@ -241,7 +244,8 @@ def kernel_spec(system: LagrangianSystem, repeats: bool = True) -> KernelSpec:
         hessian_entries=tuple(hessian),
         mass_entries=tuple(mass),
         velocity_entries=() if groups else _velocity_entries(system, rename),
-        generated_loops=has_generated_loops(system, p, bool(groups)),
+        # straight-line point functions only: the generated loops copy their text
+        generated_loops=not groups and len(hessian) <= LARGE and has_generated_loops(system, p),
         pattern=pattern if banded else (),
         half_bandwidth=half_bandwidth,
         banded=banded,
