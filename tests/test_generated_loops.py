@@ -348,3 +348,25 @@ def test_the_generated_stage_text_runs_uncompiled_on_numpy_arrays():
     np.testing.assert_array_equal(t_out, compiled.t)
     np.testing.assert_array_equal(q_out, compiled.q)
     assert total[0] == compiled.total_newton_iterations
+
+
+def test_the_key_of_a_module_with_a_stage_loop_follows_the_loops(monkeypatch):
+    # the generated stage loop compiles in the shared loop's stopping rule: a new version
+    # of the loops is a new module (and a recalled key is trusted only under the same
+    # fingerprint, which hashes the loops' sources)
+    from galerkin_vi.codegen import compiled
+    from galerkin_vi.codegen import spec as spec_module
+
+    names = {path.name for path in compiled.fingerprint_sources()}
+    assert {"stage_form.py", "linalg.py", "newton.py", "source.py"} <= names
+    staged = codegen.kernel_spec(henon_heiles().system)
+    driven = codegen.kernel_spec(STAGE_CASES["driven_pendulum"][0])
+    plain = codegen.kernel_spec(spring_chain(30, beta=0.5).system)
+    assert codegen.spec.has_stage_steps(staged) and not codegen.spec.has_stage_steps(plain)
+    keys = {}
+    for version in ("loops-a", "loops-b"):
+        monkeypatch.setattr(spec_module, "_loop_version", lambda v=version: v)
+        keys[version] = [codegen.signature(s, "numba", "0") for s in (staged, driven, plain)]
+    assert keys["loops-a"][0] != keys["loops-b"][0]
+    assert keys["loops-a"][1] != keys["loops-b"][1]
+    assert keys["loops-a"][2] == keys["loops-b"][2]

@@ -83,13 +83,17 @@ def generator_fingerprint() -> str:
     stage-form loop compiles in): a point-function key remembered by an earlier
     process is trusted only under the same fingerprint and numba version."""
     h = hashlib.sha256(GENERATOR_VERSION.encode())
+    for path in fingerprint_sources():
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def fingerprint_sources() -> list[Path]:
+    """The files :func:`generator_fingerprint` hashes."""
     here = Path(__file__).resolve().parent
     package = here.parent
     sources = sorted(here.glob("*.py")) + [package / "model" / "terms.py"]
-    sources += sorted((package / "loops").glob("*.py")) + [package / "newton.py"]
-    for path in sources:
-        h.update(path.read_bytes())
-    return h.hexdigest()[:16]
+    return sources + sorted((package / "loops").glob("*.py")) + [package / "newton.py"]
 
 
 def entry_path(key: str) -> Path:

@@ -136,6 +136,7 @@ def check_composition(system: LagrangianSystem, method: Composition, backend: st
             f"(or 'auto' with numba installed), got {backend!r}"
         )
 
+
 def gyroscopic_term_varies(system: LagrangianSystem) -> bool:
     r"""Whether :math:`a(t) = L_v(t, q, 0)` depends on :math:`t`."""
     if system.structure.autonomous or system.t is None:
