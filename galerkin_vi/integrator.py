@@ -66,14 +66,17 @@ class Integrator:
     fixed_point : bool or "persistent"
         With a mass matrix that varies, iterate the stage velocities by fixed
         point (the ``"varying_mass"`` loop; default) rather than by Newton. The
-        fixed point wins at moderate steps (double pendulum, s = 3-4) and at the
-        small fictitious steps of :class:`AdaptiveIntegrator`, where Newton's
-        factors carried across steps stop short of round-off. With ``True`` it
-        hands the rest of the run (or chunk) over to Newton when a sweep contracts
-        by less than 0.3 or the sweeps per step average over 7 more than the
-        stages; with ``"persistent"`` (the adaptive integrator's default) only
-        when the sweeps diverge or would exceed ``maxiter``
-        (:class:`galerkin_vi.run.loop_choice.HandOver`).
+        fixed point wins at every step the double pendulum converges at (s = 3-6)
+        and at the small fictitious steps of :class:`AdaptiveIntegrator`, where
+        Newton's factors carried across steps stop short of round-off. With
+        ``True`` it hands the rest of the run (or chunk) over to Newton when a
+        sweep contracts by less than 0.3 or the sweeps per step average over 7
+        more than the stages; with ``"persistent"`` (the adaptive integrator's
+        default) only when the sweeps diverge or would exceed ``maxiter``
+        (:class:`galerkin_vi.run.loop_choice.HandOver`). Where the sweep solves the
+        momentum equations in closed form (L quadratic in v with M diagonal or
+        n <= 2: a sweep costs a quarter to a third of a Newton iteration), ``True``
+        keeps the fixed point as ``"persistent"`` does.
 
     Notes
     -----
@@ -234,7 +237,7 @@ class Integrator:
             self._summary,
             self._points,
             constant_mass=self.uses_constant_mass,
-            hand_over=hand_over(self.fixed_point),
+            hand_over=hand_over(self.fixed_point, bool(self._summary.explicit_velocity)),
             specialize=self.specialize,
         )
 

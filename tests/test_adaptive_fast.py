@@ -11,6 +11,8 @@ import pytest
 import sympy as sp
 
 import galerkin_vi as gvi
+import galerkin_vi.integrator as integrator_module
+from galerkin_vi import problems
 from galerkin_vi.adaptive.integrator import landing_guess
 from galerkin_vi.problems import gravitation
 from galerkin_vi.run import segment
@@ -48,6 +50,11 @@ def test_the_rules_of_fixed_point():
     assert hand_over(True) == EARLY_HAND_OVER
     assert hand_over(False) == EARLY_HAND_OVER  # not read: the Newton loop runs
     assert hand_over("persistent") == PERSISTENT
+    # a sweep in closed form costs a fraction of a Newton iteration: True keeps it
+    assert hand_over(True, closed_form=True) == PERSISTENT
+    assert hand_over("persistent", closed_form=True) == PERSISTENT
+    double_pendulum = gvi.Integrator(problems.double_pendulum().system, GAUSS4)
+    assert double_pendulum.run_spec.hand_over == PERSISTENT
     assert math.isinf(PERSISTENT.contraction) and math.isinf(PERSISTENT.allowance)
     system = gravitation.kepler(0.5).system
     for bad in ("always", 1, None):
@@ -56,17 +63,20 @@ def test_the_rules_of_fixed_point():
 
 
 def test_the_adaptive_run_keeps_the_fixed_point_at_pericentre(kepler, g, monkeypatch):
-    """Kepler e = 0.9, Gauss(4), h = 0.2: with ``fixed_point=True`` every chunk hands over to
-    Newton at its first pericentre; the persistent default never does, and both converge the
-    stage equations to round-off: the final states agree to round-off growth."""
+    """Kepler e = 0.9, Gauss(4), h = 0.2: with the early rule (``fixed_point=True`` on a
+    system without a closed-form sweep) every chunk hands over to Newton at its first
+    pericentre; the persistent default never does, and both converge the stage equations
+    to round-off: the final states agree to round-off growth."""
     t_final = 2 * math.pi * PERIODS
     calls = count_hand_overs(monkeypatch)
     adaptive = gvi.AdaptiveIntegrator(kepler.system, GAUSS4, g=g)
     assert adaptive.integrator.fixed_point == "persistent"
     kept = adaptive.integrate(kepler.q0, kepler.v0, h=0.2, t_final=t_final, on_failure="raise")
     assert calls[0] == 0
-    early = gvi.AdaptiveIntegrator(kepler.system, GAUSS4, g=g, fixed_point=True)
-    handed = early.integrate(kepler.q0, kepler.v0, h=0.2, t_final=t_final, on_failure="raise")
+    with monkeypatch.context() as patch:
+        patch.setattr(integrator_module, "hand_over", lambda *_, **__: EARLY_HAND_OVER)
+        early = gvi.AdaptiveIntegrator(kepler.system, GAUSS4, g=g, fixed_point=True)
+        handed = early.integrate(kepler.q0, kepler.v0, h=0.2, t_final=t_final, on_failure="raise")
     assert calls[0] >= 2
     assert kept.t[-1] == handed.t[-1] == t_final
     assert np.abs(kept.q[-1] - handed.q[-1]).max() < 1e-11

@@ -67,8 +67,15 @@ EARLY_HAND_OVER = HandOver(contraction=0.3, allowance=7.0)
 PERSISTENT = HandOver(contraction=math.inf, allowance=math.inf)
 
 
-def hand_over(fixed_point: bool | str) -> HandOver:
-    """The :class:`HandOver` rule of ``Integrator(fixed_point=...)``.
+def hand_over(fixed_point: bool | str, closed_form: bool = False) -> HandOver:
+    """The :class:`HandOver` rule of ``Integrator(fixed_point=...)``; ``closed_form``
+    says whether the system's sweep solves the momentum equations in closed form
+    (``point_velocity``: one call per stage, no residual). Such a sweep costs a quarter
+    to a third of a Newton iteration (double pendulum, Gauss(3)-(6)): the 8 iterations
+    Newton takes at the coarsest steps cost 20-30 sweeps, every early hand-over made the
+    run slower (up to 2.3x) and Newton fails at coarse steps the fixed point takes, so
+    ``fixed_point=True`` keeps the fixed point as :data:`PERSISTENT` does
+    (docs/performance.md, "Fifth session of 2026-11-27").
 
     Raises
     ------
@@ -78,7 +85,7 @@ def hand_over(fixed_point: bool | str) -> HandOver:
     if isinstance(fixed_point, str) and fixed_point == "persistent":
         return PERSISTENT
     if isinstance(fixed_point, bool):
-        return EARLY_HAND_OVER
+        return PERSISTENT if closed_form else EARLY_HAND_OVER
     raise ValueError(f"fixed_point must be True, False or 'persistent', got {fixed_point!r}")
 
 
