@@ -164,7 +164,7 @@ def render_explicit_steps(
     body += ["saved = 1", "for k in range(n_steps):"]
     step = [f"b_{a} = q_{a}" for a in range(n)] + [f"c_{a} = p_{a}" for a in range(n)]
     step += [f"bl_{a} = l_{a}" for a in angles] + [f"br_{a} = r_{a}" for a in angles]
-    step += ["finite = True", "for i in range(m):"]
+    step += ["for i in range(m):"]
     sub = ["eta = drift[i] * h", "before = kick_before[i] * h", "after = kick_after[i] * h"]
     if not autonomous:
         sub.append("t = t0 + (k + nodes[i]) * h")
@@ -187,10 +187,10 @@ def render_explicit_steps(
     sub += force
     sub += [f"p_{a} += before * f_{a} + after * g_{a}" for a in range(n)]
     sub += [f"f_{a} = g_{a}" for a in range(n)]
-    # every sub-step's state is tested, as in the shared loop
-    bounded = " and ".join(f"abs({x}_{a}) < 1e300" for a in range(n) for x in ("p", "q"))
-    sub += [f"if not ({bounded}):", "    finite = False"]
     step += indented(sub, 1)
+    # the step's end state is tested, as in the shared loop
+    bounded = " and ".join(f"abs({x}_{a}) < 1e300" for a in range(n) for x in ("p", "q"))
+    step += [f"finite = {bounded}"]
     # the state before a step that overflows is the last row, due or not
     kept = saved_row_lines("k % save_every != 0", "t0 + k * h", "b", "c", n, periodic, "bl", "br")
     step += ["if not finite:", *indented(kept, 1)]

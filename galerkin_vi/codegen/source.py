@@ -327,6 +327,13 @@ def _point_function(
         ]
     else:
         pieces = [(entries[k : k + POINT_CHUNK], None) for k in range(0, len(entries), POINT_CHUNK)]
+    if runs and not calls and returns is None and len(pieces) <= 1:
+        # the loops and at most one part's entries: one function, compiled as one part
+        # would be (calling parts costs an atomic reference count increment and
+        # decrement per array argument and call, twice the loops' own work on a chain)
+        chunk = pieces[0][0] if pieces else []
+        body = _loop_body(runs) + (_function_body(chunk, large=True) if chunk else [])
+        return ["", "", f"def {name}({params}):", *body], tables
     if runs:
         part = f"{name}_loops"
         lines += ["", "", "@part", f"def {part}({params}):", *_loop_body(runs)]

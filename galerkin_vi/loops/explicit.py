@@ -83,6 +83,7 @@ def explicit_loop(
     lq_next = np.zeros(n)
     a0 = np.zeros(n)
     a1 = np.zeros(n)
+    half = np.zeros(n)  # (a0 + a1) / 2, the gyroscopic term at the drift
     rhs = np.zeros(n)
     # the state before the step, restored on failure: the last good state is saved
     q_before = np.zeros(n)
@@ -92,10 +93,18 @@ def explicit_loop(
     saved = save_row(0, t0, qk, q_lost, turns, pk, t_out, q_out, p_out, turns_out, periodic)
     point_gradient(fn, t0, qk, zero, prm, lq, a0)
     point_gradient(fn, t0, qk, zero, prm, lq_next, a1)
+    for a in range(n):
+        half[a] = 0.5 * (a0[a] + a1[a])
     for k in range(n_steps):
         tk = t0 + k * h
         tk1 = t0 + (k + 1) * h
-        finite = True
+        for a in range(n):
+            q_before[a] = qk[a]
+            p_before[a] = pk[a]
+        if periodic is not None:
+            for a in range(n):
+                lost_before[a] = q_lost[a]
+                turns_before[a] = turns[a]
         for i in range(m):
             eta = drift[i] * h
             before = kick_before[i] * h
@@ -104,27 +113,22 @@ def explicit_loop(
             if time_dependent is not None:
                 # a(tau_i) before the drift; L_q(tau_{i-1}, q) is the last sub-step's
                 point_gradient(fn, tau, qk, zero, prm, lq_next, a1)
-            if i == 0:
-                # the state before the step, saved in the first sub-step's pass over it
                 for a in range(n):
-                    q_before[a] = qk[a]
-                    p_before[a] = pk[a]
-                    lost_before[a] = q_lost[a]
-                    turns_before[a] = turns[a]
-                    rhs[a] = pk[a] + before * lq[a] - 0.5 * (a0[a] + a1[a])
-            else:
+                    half[a] = 0.5 * (a0[a] + a1[a])
+            # q += eta M^{-1} (p + before L_q - a), written out here in one pass per
+            # sub-step: an inlined helper taking these arrays costs an atomic reference
+            # count increment and decrement per array and call, and a pass that also
+            # tests or copies does not vectorise
+            if Minv_diagonal is None:
                 for a in range(n):
-                    rhs[a] = pk[a] + before * lq[a] - 0.5 * (a0[a] + a1[a])
-            # q += eta M^{-1} rhs, written out here: an inlined helper taking these arrays
-            # costs an atomic reference count increment and decrement per array and call,
-            # a large share of a step this short
+                    rhs[a] = pk[a] + before * lq[a] - half[a]
             for a in range(n):
                 if Minv_diagonal is None:
                     acc = 0.0
                     for b in range(n):
                         acc += Minv[a, b] * rhs[b]
                 else:
-                    acc = Minv_diagonal[a] * rhs[a]
+                    acc = Minv_diagonal[a] * (pk[a] + before * lq[a] - half[a])
                 if periodic is None:
                     qk[a] += eta * acc
                 else:
@@ -141,11 +145,18 @@ def explicit_loop(
             point_gradient(fn, tau, qk, zero, prm, lq_next, a1)
             for a in range(n):
                 pk[a] += before * lq[a] + after * lq_next[a]
-                lq[a] = lq_next[a]
-                if time_dependent is not None:
+            # the force at this sub-step's end starts the next one
+            lq, lq_next = lq_next, lq
+            if time_dependent is not None:
+                for a in range(n):
                     a0[a] = a1[a]  # autonomous: a is constant
-                if not abs(pk[a]) < 1e300 or not abs(qk[a]) < 1e300:
-                    finite = False
+        # an inf or NaN of any sub-step stays in the sums (and the wrap) to the step's
+        # end: one test per step finds the step that overflowed
+        finite = True
+        for a in range(n):
+            if not (abs(pk[a]) < 1e300 and abs(qk[a]) < 1e300):
+                finite = False
+                break
         if not finite:
             if k % save_every != 0:
                 saved = save_row(
