@@ -65,6 +65,20 @@ def test_looped_point_functions_equal_the_straight_line_ones(beta):
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-14 * np.abs(b).max())
 
 
+def test_loops_and_one_part_are_one_function():
+    """A chain's point functions are loops and a few end rows: written as one function
+    (calling parts costs reference counts per array and call); a function whose rest
+    exceeds one part's entries keeps its parts."""
+    spec = codegen.kernel_spec(problems.spring_chain(50, beta=1.0).system, repeats=False)
+    looped = codegen.render_module(spec, "k")
+    for name in ("point_gradient", "point_hessian", "point_mass"):
+        assert f"def {name}(" in looped
+        assert f"def {name}_loops(" not in looped and f"def {name}_part0(" not in looped
+    many = [(f"Lq[{i}]", sp.sin(Q[i % 40]) * Q[(7 * i) % 40]) for i in range(40)] * 6
+    lines, _ = source._point_function("point_gradient", many, True, spec=spec)
+    assert any(line.startswith("def point_gradient_part1(") for line in lines)
+
+
 def test_a_large_chain_with_loops_integrates_like_the_numpy_reference():
     x = sp.symbols("x0:40")
     w = sp.symbols("w0:40")
