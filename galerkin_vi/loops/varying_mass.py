@@ -222,10 +222,9 @@ def varying_mass_loop(
                     break
                 # a change that stops decreasing has reached the round-off floor when
                 # it is a few units of the last place, or when two sweeps have not
-                # shrunk it either: sweeps whose contraction alternates (0.2, 0.6,
-                # 0.2, ... near a close encounter) grow it for one sweep on their way
-                # down, and accepting that sweep left errors of 1e-11 that grew to
-                # 1e-7 after the encounter
+                # shrunk it either: sweeps whose contraction alternates (near a close
+                # encounter) grow it for one sweep on their way down, still far from
+                # the fixed point
                 if (
                     its >= 2
                     and change >= previous

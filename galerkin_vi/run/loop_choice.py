@@ -70,12 +70,11 @@ PERSISTENT = HandOver(contraction=math.inf, allowance=math.inf)
 def hand_over(fixed_point: bool | str, closed_form: bool = False) -> HandOver:
     """The :class:`HandOver` rule of ``Integrator(fixed_point=...)``; ``closed_form``
     says whether the system's sweep solves the momentum equations in closed form
-    (``point_velocity``: one call per stage, no residual). Such a sweep costs a quarter
-    to a third of a Newton iteration (double pendulum, Gauss(3)-(6)): the 8 iterations
-    Newton takes at the coarsest steps cost 20-30 sweeps, every early hand-over made the
-    run slower (up to 2.3x) and Newton fails at coarse steps the fixed point takes, so
-    ``fixed_point=True`` keeps the fixed point as :data:`PERSISTENT` does
-    (docs/performance.md, "Fifth session of 2026-11-27").
+    (``point_velocity``: one call per stage, no residual). Such a sweep costs a fraction
+    of a Newton iteration, so the early rule's hand-overs made runs slower and gave
+    coarse steps to a Newton that fails at them: ``fixed_point=True`` keeps the fixed
+    point as :data:`PERSISTENT` does (docs/performance.md, "Fifth session of
+    2026-11-27").
 
     Raises
     ------
