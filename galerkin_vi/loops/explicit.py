@@ -151,7 +151,8 @@ def explicit_loop(
                 for a in range(n):
                     a0[a] = a1[a]  # autonomous: a is constant
         # an inf or NaN of any sub-step stays in the sums (and the wrap) to the step's
-        # end: one test per step finds the step that overflowed
+        # end: one test of the end state per step finds the step that overflowed (a
+        # value past 1e300 that a later sub-step brings back is not a failure)
         finite = True
         for a in range(n):
             if not (abs(pk[a]) < 1e300 and abs(qk[a]) < 1e300):

@@ -225,6 +225,9 @@ def varying_mass_loop(
                 # shrunk it either: sweeps whose contraction alternates (near a close
                 # encounter) grow it for one sweep on their way down, still far from
                 # the fixed point
+                # (a change that still decreases is not accepted however small: stopping
+                # there leaves a sub-ulp error of one sign each step, and the energy of
+                # a long run drifts linearly instead of as a random walk)
                 if (
                     its >= 2
                     and change >= previous
