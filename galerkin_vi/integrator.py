@@ -54,12 +54,14 @@ class Integrator:
         Let the structure of the problem pick a cheaper time loop (see
         :attr:`kernel_path`); ``False`` forces the general Newton loop.
         ``"system"`` also runs the stage-form loop (``"separable"`` path) of a small
-        system with a diagonal constant mass as a loop generated for that system
-        (:mod:`galerkin_vi.codegen.stage_steps`: its coordinates as scalars, its
-        force inline; the same steps bit for bit up to a step that needs Newton, in
-        about two thirds of the time where a step is a few sweeps of a cheap
-        force), at the price of compiling it: 1.5–4 s once per system and machine,
-        cached on disk. With either true
+        system with a diagonal constant mass as a loop generated for that system and
+        method (:mod:`galerkin_vi.codegen.method_steps`: its coordinates, stage values
+        and tables as scalars, its force inline; the same steps bit for bit up to a
+        step that needs Newton, in half to two thirds of the time where a step is a
+        few sweeps of a cheap force), at the price of compiling it: 0.7–3.5 s once per
+        system, method and machine, cached on disk. Past 24 stage unknowns (implicit
+        points times coordinates) the loop is generated for the system alone
+        (:mod:`galerkin_vi.codegen.stage_steps`, 1.5–4 s once per system). With either true
         value the explicit path (compositions, Störmer–Verlet) runs the loop generated
         for the system, which compiles in a fraction of a second; ``False`` keeps the
         shared loops (compositions still take the explicit path).

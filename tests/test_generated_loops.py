@@ -1,6 +1,7 @@
 """The loops generated per system (``galerkin_vi.codegen.explicit_steps`` and
-``stage_steps``): the shared loops' states bit for bit, their failures and hand-overs,
-which systems get them, ``specialize="system"``, and their text run uncompiled."""
+``stage_steps``) and per system and method (``method_steps``): the shared loops' states
+bit for bit, their failures and hand-overs, which systems get them,
+``specialize="system"``, their cache entries, and their text run uncompiled."""
 
 from __future__ import annotations
 
@@ -14,7 +15,9 @@ import sympy as sp
 import galerkin_vi as gvi
 from galerkin_vi import codegen
 from galerkin_vi.codegen.explicit_steps import EXPLICIT_UNROLLED
+from galerkin_vi.codegen.method_steps import METHOD_UNROLLED
 from galerkin_vi.codegen.spec import LARGE
+from galerkin_vi.method.stage_form import separable_tables
 from galerkin_vi.problems.chains import spring_chain
 from galerkin_vi.problems.forced import driven_oscillator
 from galerkin_vi.problems.gravitation import kepler
@@ -256,6 +259,61 @@ def test_the_generated_stage_loop_takes_the_shared_loops_steps_and_sweeps(
         np.testing.assert_array_equal(generated.q_reduced, shared.q_reduced)
 
 
+def _loop_name(integrator: gvi.Integrator) -> str:
+    return integrator.run_spec.stage_steps.py_func.__name__
+
+
+def test_small_systems_get_a_loop_written_for_the_method_and_large_ones_the_systems():
+    # Kepler with Gauss(4): 4 implicit points x 2 coordinates; eight oscillators with
+    # Gauss(4): 32 unknowns, past METHOD_UNROLLED, run the system's own loop
+    small = gvi.Integrator(STAGE_CASES["kepler"][0], METHODS["gauss4"], specialize="system")
+    assert _loop_name(small) == "method_steps"
+    n = METHOD_UNROLLED // 4 + 1
+    system = _oscillators(n)
+    large = gvi.Integrator(system, METHODS["gauss4"], specialize="system")
+    assert _loop_name(large) == "stage_steps"
+    narrow = gvi.Integrator(system, METHODS["gauss2"], specialize="system")
+    assert _loop_name(narrow) == ("method_steps" if 2 * n <= METHOD_UNROLLED else "stage_steps")
+    q0, v0 = np.linspace(0.2, 0.9, n), np.linspace(-0.3, 0.3, n)
+    run = dict(h=0.05, n_steps=200, save_every=7)
+    for integrator in (large, narrow):
+        generated = integrator.integrate(q0, v0, **run)
+        shared = integrate_smooth(_shared(integrator), q0, v0, None, **run)
+        np.testing.assert_array_equal(generated.q, shared.q)
+        np.testing.assert_array_equal(generated.newton_iterations, shared.newton_iterations)
+
+
+def test_each_method_is_a_cache_entry_of_its_own_and_its_key_follows_the_generator(
+    monkeypatch,
+):
+    from galerkin_vi.codegen import compiled
+
+    system, q0, v0 = STAGE_CASES["henon_heiles"]
+    first = gvi.Integrator(system, METHODS["gauss2"], specialize="system")
+    again = gvi.Integrator(system, gvi.Galerkin(2, gvi.gauss_legendre(2)), specialize="system")
+    other = gvi.Integrator(system, METHODS["lobatto3"], specialize="system")
+    assert again.run_spec.stage_steps is first.run_spec.stage_steps
+    assert other.run_spec.stage_steps is not first.run_spec.stage_steps
+    files = {f.__module__ for f in (first.run_spec.stage_steps.py_func,
+                                    other.run_spec.stage_steps.py_func)}  # fmt: skip
+    assert len(files) == 2
+    # a new generator (its fingerprint) writes the method's loop afresh, under a new key
+    points = compiled.load_point_functions(codegen.kernel_spec(system))
+    tables = separable_tables(METHODS["gauss2"])
+    b, c = METHODS["gauss2"].tables.b, METHODS["gauss2"].tables.c
+    points.loops.clear()
+    monkeypatch.setattr(compiled, "generator_fingerprint", lambda: "another generator")
+    renewed = points.stage_loop(b, c, tables)
+    assert renewed.py_func.__module__ not in files
+    np.testing.assert_array_equal(
+        first.integrate(q0, v0, h=0.05, n_steps=30).q,
+        integrate_smooth(
+            dataclasses.replace(first.run_spec, stage_steps=renewed), q0, v0, None,
+            h=0.05, n_steps=30,
+        ).q,
+    )  # fmt: skip
+
+
 def test_two_lobatto_points_iterate_nothing_in_either_loop():
     system, q0, v0 = STAGE_CASES["kepler"]
     with pytest.warns(gvi.OrderReductionWarning):  # order 2: two points, degree 2
@@ -347,6 +405,31 @@ def test_the_generated_stage_text_runs_uncompiled_on_numpy_arrays():
     assert (status, steps, saved) == (0, 12, 5)
     np.testing.assert_array_equal(t_out, compiled.t)
     np.testing.assert_array_equal(q_out, compiled.q)
+    assert total[0] == compiled.total_newton_iterations
+
+
+@pytest.mark.parametrize("method", ["gauss2", "lobatto5"])
+def test_the_method_text_runs_uncompiled_on_numpy_arrays(method):
+    system, q0, v0 = STAGE_CASES["angle_and_length"]
+    integrator = gvi.Integrator(system, METHODS[method], specialize="system")
+    assert _loop_name(integrator) == "method_steps"
+    source = integrator.run_spec.stage_steps.py_func.__globals__["__file__"]
+    namespace: dict = {"__name__": "uncompiled"}
+    with open(source) as f:
+        exec(compile(f.read(), "<generated>", "exec"), namespace)
+    compiled = integrator.integrate(q0, v0, h=0.1, n_steps=12, save_every=5)
+    _, _, after = integrator.run_spec.loop_parts()
+    t_out, q_out, p_out, turns = np.zeros(4), np.zeros((4, 2)), np.zeros((4, 2)), np.zeros((4, 2))
+    iterations, total = np.zeros(3, dtype=np.uint8), np.zeros(1, dtype=np.int64)
+    q, v = np.array(q0, float), np.array(v0, float)
+    status, steps, saved, _, _ = namespace["method_steps"](
+        q, v.copy(), v, 0.0, 0.1, 12, 5, system.parameter_vector(None), *after,
+        t_out, q_out, p_out, turns, iterations, total,
+    )  # fmt: skip
+    assert (status, steps, saved) == (0, 12, 4)
+    np.testing.assert_array_equal(t_out, compiled.t)
+    np.testing.assert_array_equal(q_out, compiled.q_reduced)
+    np.testing.assert_array_equal(iterations, compiled.newton_iterations)
     assert total[0] == compiled.total_newton_iterations
 
 

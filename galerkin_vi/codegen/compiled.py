@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..cache import atomic_write, cache_root, discard_unreadable
+from .method_steps import LOOP_TEXT, has_method_steps, method_digest, render_method_module
 from .slots import POINT_SLOTS
 from .source import render_module
 from .spec import GENERATOR_VERSION, KernelSpec, signature
@@ -167,6 +168,42 @@ class PointFunctions:
             if name not in self.loops:
                 self.loops[name] = njit(cache=True, nogil=True, error_model="numpy")(function)
         return self.loops[name]
+
+    def stage_loop(self, b, c, tables) -> Callable | None:
+        """The generated stage-form loop of this system for the method of ``b``, ``c``
+        and ``tables`` (its :class:`~galerkin_vi.method.stage_form.SeparableTables`), or
+        None when the system has none.
+
+        The loop written for this system and this method (:mod:`.method_steps`) where
+        :func:`.method_steps.has_method_steps`, else the system's own
+        (:mod:`.stage_steps`). The former's source is a cache entry of its own, keyed
+        by this module's key, the method's tables and the generator's fingerprint;
+        numba compiles it on its first call and caches it beside the source.
+        """
+        text = getattr(self.module, LOOP_TEXT, None)
+        if text is None:
+            return None
+        if not has_method_steps(text["n"], tables):
+            return self.generated_loop("stage_steps")
+        digest = method_digest(b, c, tables)
+        with _LOCK:
+            loop = self.loops.get(digest)
+            if loop is not None:
+                return loop
+            key = hashlib.sha256(
+                f"{self.key}:{digest}:{generator_fingerprint()}".encode()
+            ).hexdigest()
+            if read_entry(key) is None:
+                atomic_write(entry_path(key), render_method_module(text, b, c, tables, key))
+            module = _import_entry(key, f"galerkin_vi_method_{key[:32]}")
+            from numba import njit
+
+            from ..loops import cache_locators
+
+            with cache_locators():
+                loop = njit(cache=True, nogil=True, error_model="numpy")(module.method_steps)
+            self.loops[digest] = loop
+        return loop
 
 
 def _body_address(compiled) -> int:

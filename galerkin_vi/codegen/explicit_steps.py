@@ -108,20 +108,21 @@ def saved_row_lines(
 
 def wrap_lines(a: int) -> list[str]:
     """Lines translating angle ``q_a`` by whole turns into [-pi, pi) (:func:`wrap_angles`)."""
+    # the corrections run only for an angle outside the interval: one test per step
     return [
         f"if not -math.pi <= q_{a} < math.pi:",
         f"    _k = np.floor((q_{a} + math.pi) / {_TWO_PI_HI!r})",
         f"    q_{a} -= _k * {_TWO_PI_HI!r}",
         f"    l_{a} += _k * {_TWO_PI_LO!r}",
         f"    r_{a} += _k",
-        f"while q_{a} >= math.pi:",
-        f"    q_{a} -= {_TWO_PI_HI!r}",
-        f"    l_{a} += {_TWO_PI_LO!r}",
-        f"    r_{a} += 1.0",
-        f"while q_{a} < -math.pi:",
-        f"    q_{a} += {_TWO_PI_HI!r}",
-        f"    l_{a} -= {_TWO_PI_LO!r}",
-        f"    r_{a} -= 1.0",
+        f"    while q_{a} >= math.pi:",
+        f"        q_{a} -= {_TWO_PI_HI!r}",
+        f"        l_{a} += {_TWO_PI_LO!r}",
+        f"        r_{a} += 1.0",
+        f"    while q_{a} < -math.pi:",
+        f"        q_{a} += {_TWO_PI_HI!r}",
+        f"        l_{a} -= {_TWO_PI_LO!r}",
+        f"        r_{a} -= 1.0",
     ]
 
 

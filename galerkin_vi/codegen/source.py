@@ -26,6 +26,7 @@ import sympy as sp
 
 from ..printer import KernelPrinter
 from .explicit_steps import render_explicit_steps
+from .method_steps import loop_text_lines
 from .repeats import Run, find_runs
 from .scatter import ScatterGroup
 from .spec import LARGE, KernelSpec, has_stage_steps
@@ -462,6 +463,8 @@ def render_module(spec: KernelSpec, key: str) -> str:
             }
             mass = [f"m_{a} = 0.0" for a in range(spec.n)] + at_rest(hessian, diagonal)
             steps += render_stage_steps(force, mass, spec.n, spec.periodic, spec.autonomous)
+            # what a loop generated per method (:mod:`.method_steps`) is written from
+            steps += ["", "", *loop_text_lines(force, mass, spec.n, spec.periodic, spec.autonomous)]
     tables = [
         _table_literal(f"{group.name}_{what}", array)
         for group in spec.repeats

@@ -31,7 +31,7 @@ import re
 
 from .explicit_steps import indented, row_lines, saved_row_lines, wrap_lines
 
-__all__ = ["render_stage_steps"]
+__all__ = ["IMPORTS", "force_at", "render_stage_steps"]
 
 # the loops' status codes (galerkin_vi.loops.abi), written into the generated text
 _STATUS_OK = 0
@@ -126,7 +126,7 @@ def render_stage_steps(
     reused = "reuse_endpoint and have_start_force" if autonomous else "False"
     step += [f"if not ({reused}):"]
     known = ["j = known[jk]", f"t = {time}"]
-    known += [f"Q_{a} = q_{a}" for a in coords] + _force_at("Q", force)
+    known += [f"Q_{a} = q_{a}" for a in coords] + force_at("Q", force)
     known += [f"F[j, {a}] = g_{a}" for a in coords]
     step += indented(["for jk in range(known.shape[0]):", *indented(known, 1)], 1)
     offset = _sums(
@@ -153,7 +153,7 @@ def render_stage_steps(
     step += [f"    step_size = max(step_size, abs(Z[il, {a}]))" for a in coords]
     sweep = ["its += 1", "for jl in range(u):"]
     stage = ["j = implicit[jl]", f"t = {time}"]
-    stage += [f"Q_{a} = q_{a} + Z[jl, {a}]" for a in coords] + _force_at("Q", force)
+    stage += [f"Q_{a} = q_{a} + Z[jl, {a}]" for a in coords] + force_at("Q", force)
     stage += [f"FI[jl, {a}] = g_{a}" for a in coords]
     sweep += indented(stage, 1)
     sweep += ["residual = 0.0", "increment = 0.0", "size = step_size", "shift = 0.0"]
@@ -208,7 +208,7 @@ def render_stage_steps(
     # the control points, the forces at the points explicit once C is known, dp
     end = ["if not current:", "    for jl in range(u):"]
     refresh = ["j = implicit[jl]", f"t = {time}"]
-    refresh += [f"Q_{a} = q_{a} + Z[jl, {a}]" for a in coords] + _force_at("Q", force)
+    refresh += [f"Q_{a} = q_{a} + Z[jl, {a}]" for a in coords] + force_at("Q", force)
     refresh += [f"FI[jl, {a}] = g_{a}" for a in coords]
     end += indented(refresh, 2)
     end += ["for jl in range(u):"]
@@ -220,7 +220,7 @@ def render_stage_steps(
     rest = ["j = rest[jr]", f"t = {time}"]
     rest += _sums("mu", "s", "Phi1[j, mu]", "C[mu, {a}]", n)
     rest += [f"Q_{a} = q_{a} + acc_{a}" for a in coords]
-    rest += _force_at("Q", force) + [f"F[j, {a}] = g_{a}" for a in coords]
+    rest += force_at("Q", force) + [f"F[j, {a}] = g_{a}" for a in coords]
     end += ["for jr in range(rest.shape[0]):", *indented(rest, 1)]
     end += _sums("j", "r", "b[j]", "F[j, {a}]", n)
     end += [f"d_{a} = h * acc_{a}" for a in coords]
@@ -273,7 +273,7 @@ def _sums(index: str, count: str, weight: str, term: str, n: int, start: str = "
     return lines
 
 
-def _force_at(point: str, force: list[str]) -> list[str]:
+def force_at(point: str, force: list[str]) -> list[str]:
     """The force's lines evaluated at the scalars ``{point}_a`` instead of ``q_a`` (the
     identifiers ``q_0``, ``q_1``, ... are whole words of the lines)."""
     pattern = re.compile(r"\bq_(\d+)\b")

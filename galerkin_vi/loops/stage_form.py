@@ -85,16 +85,18 @@ def too_slow(increment, previous, its, contraction, budget, target):
     """
     if its < 2 or increment <= target:
         return False
-    theta = increment / previous
-    if theta > contraction:
+    # the rate's tests as products (previous > 0 here: a zero increment has converged);
+    # the division is left to the prediction, which fast contractions never reach
+    if increment > contraction * previous:
         return True
-    if theta <= 0.0:
+    if increment <= 0.0:
         return False
-    if theta <= FAST_SWEEP and its + FAST_SWEEPS_LEFT <= budget:
+    if increment <= FAST_SWEEP * previous and its + FAST_SWEEPS_LEFT <= budget:
         # at this rate a sweep gains 1.3 digits or more, and this many sweeps reach the
         # tolerance from an increment the size of q: no prediction needed (its two
         # logarithms per sweep would be a large share of a small system's step)
         return False
+    theta = increment / previous
     return its + np.log(target / increment) / np.log(theta) > budget
 
 

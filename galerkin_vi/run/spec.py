@@ -287,7 +287,9 @@ def compiled_run_spec(
     steps = points.generated_loop("explicit_steps") if explicit else None
     # the generated stage-form loop iterates the constant-mass fixed point only
     separable = path == "separable" and constant_mass and specialize == "system"
-    stages = points.generated_loop("stage_steps") if separable else None
+    stages = None
+    if separable:
+        stages = points.stage_loop(method.tables.b, method.tables.c, separable_tables(method))
     return RunSpec(
         system, method, path, "numba", tol, maxiter, model=model,
         diagonal_mass=bool(summary.diagonal_mass), autonomous=bool(summary.autonomous),
