@@ -77,6 +77,7 @@ def run(
     problems: tuple[str, ...] | None = None,
     chain_cost: bool = True,
     verbose: bool = True,
+    specialize: bool | str | None = None,
 ) -> dict:
     """Run the benchmark and return its results.
 
@@ -96,6 +97,9 @@ def run(
         Whether to measure the spring chain's cost per step against N.
     verbose : bool
         Print progress.
+    specialize : bool or "system", optional
+        ``Integrator(specialize=...)`` of the galerkin_vi curves (default: the
+        configuration's, ``"system"``).
 
     Returns
     -------
@@ -112,6 +116,8 @@ def run(
         cfg = dataclasses.replace(cfg, problems=tuple(problems))
     if not chain_cost:
         cfg = dataclasses.replace(cfg, chain_cost_sizes=())
+    if specialize is not None:
+        cfg = dataclasses.replace(cfg, specialize=specialize)
 
     def log(msg: str) -> None:
         if verbose:
@@ -147,6 +153,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
         action="store_true",
         help="skip the spring chain's cost-per-step table",
     )
+    parser.add_argument(
+        "--specialize",
+        choices=("true", "system"),
+        default="system",
+        help='galerkin_vi\'s Integrator(specialize=...): "system" (default) runs the loops '
+        "generated per small system and method, compiled before the timed runs",
+    )
     parser.set_defaults(run=main)
     return parser
 
@@ -160,6 +173,7 @@ def main(args: argparse.Namespace) -> int:
         output=args.output,
         problems=problems,
         chain_cost=not getattr(args, "no_chain_cost", False),
+        specialize=True if getattr(args, "specialize", "system") == "true" else "system",
     )
     for path in results["files"]:
         print(f"wrote {path}")

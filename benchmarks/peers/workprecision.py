@@ -168,6 +168,10 @@ class BenchConfig:
     overrides : dict
         Per problem, fields of this configuration to replace for that problem
         (e.g. ``{"fpu": {"gvi_methods": ((4, "gauss"),)}}``).
+    specialize : bool or "system"
+        ``Integrator(specialize=...)`` of the galerkin_vi curves: ``"system"`` (the
+        default here) runs the loops generated for each small system and method, as a
+        user after speed would; their compile time is not timed, as numbalsoda's is not.
     """
 
     problems: tuple[str, ...] = PROBLEMS[:-1]
@@ -199,6 +203,7 @@ class BenchConfig:
     chain_cost_steps: int = 300
     targets: tuple[float, ...] = TARGETS
     overrides: dict[str, dict[str, Any]] = field(default_factory=dict)
+    specialize: bool | str = "system"
 
     def for_problem(self, name: str) -> BenchConfig:
         """This configuration with the overrides of problem ``name`` applied."""
@@ -409,6 +414,7 @@ def _gvi_curve(case: Case, s: int, family: str, cfg: BenchConfig) -> Curve:
         energy_samples=cfg.energy_samples,
         energy=energy,
         warm_h=case.per_step_h,
+        specialize=cfg.specialize,
     )
 
 
@@ -428,6 +434,7 @@ def _composition_curve(case: Case, order: int, cfg: BenchConfig) -> Curve:
         energy_samples=cfg.energy_samples,
         energy=energy,
         warm_h=case.per_step_h,
+        specialize=cfg.specialize,
     )
 
 

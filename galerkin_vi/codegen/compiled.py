@@ -34,6 +34,7 @@ from .method_steps import LOOP_TEXT, has_method_steps, method_digest, render_met
 from .slots import POINT_SLOTS
 from .source import render_module
 from .spec import GENERATOR_VERSION, KernelSpec, signature
+from .velocity_steps import VELOCITY_LOOP_TEXT, has_velocity_steps, render_velocity_module
 
 __all__ = [
     "PointFunctions",
@@ -185,7 +186,29 @@ class PointFunctions:
             return None
         if not has_method_steps(text["n"], tables):
             return self.generated_loop("stage_steps")
-        digest = method_digest(b, c, tables)
+        return self._method_module(
+            method_digest(b, c, tables),
+            lambda key: render_method_module(text, b, c, tables, key),
+            "method_steps",
+        )
+
+    def velocity_loop(self, tables) -> Callable | None:
+        """The velocity-stage loop generated for this system and the method of
+        ``tables`` (:class:`~galerkin_vi.method.velocity_stages.VaryingMassTables`;
+        :mod:`.velocity_steps`), or None when the system has no closed-form velocity
+        or the method too many stages for it (:func:`.velocity_steps.has_velocity_steps`).
+        Cached as :meth:`stage_loop`'s."""
+        text = getattr(self.module, VELOCITY_LOOP_TEXT, None)
+        if text is None or not has_velocity_steps(text["n"], tables):
+            return None
+        digest = "velocity:" + method_digest(tables.b, tables.c, tables)
+        return self._method_module(
+            digest, lambda key: render_velocity_module(text, tables, key), "velocity_steps"
+        )
+
+    def _method_module(self, digest: str, render: Callable, name: str) -> Callable:
+        """The compiled function ``name`` of the module ``render(key)`` writes, cached
+        under a key of this module's key, ``digest`` and the generator's fingerprint."""
         with _LOCK:
             loop = self.loops.get(digest)
             if loop is not None:
@@ -194,14 +217,14 @@ class PointFunctions:
                 f"{self.key}:{digest}:{generator_fingerprint()}".encode()
             ).hexdigest()
             if read_entry(key) is None:
-                atomic_write(entry_path(key), render_method_module(text, b, c, tables, key))
+                atomic_write(entry_path(key), render(key))
             module = _import_entry(key, f"galerkin_vi_method_{key[:32]}")
             from numba import njit
 
             from ..loops import cache_locators
 
             with cache_locators():
-                loop = njit(cache=True, nogil=True, error_model="numpy")(module.method_steps)
+                loop = njit(cache=True, nogil=True, error_model="numpy")(getattr(module, name))
             self.loops[digest] = loop
         return loop
 

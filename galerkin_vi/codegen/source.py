@@ -26,12 +26,13 @@ import sympy as sp
 
 from ..printer import KernelPrinter
 from .explicit_steps import render_explicit_steps
-from .method_steps import loop_text_lines
+from .method_steps import METHOD_UNROLLED, loop_text_lines
 from .repeats import Run, find_runs
 from .scatter import ScatterGroup
 from .spec import LARGE, KernelSpec, has_stage_steps
 from .stage_steps import IMPORTS as STAGE_IMPORTS
 from .stage_steps import render_stage_steps
+from .velocity_steps import velocity_text_lines
 
 __all__ = ["FUNCTIONS", "POINT_CHUNK", "render_module"]
 
@@ -387,6 +388,16 @@ def at_rest(body: list[str], targets: dict[str, str]) -> list[str]:
     left out (their temporaries stay: numba drops what nothing reads). The
     expressions are the point function's text, so they round as it does.
     """
+    return scalar_lines(body, targets, {"q": "q", "v": None})
+
+
+def scalar_lines(
+    body: list[str], targets: dict[str, str], reads: dict[str, str | None]
+) -> list[str]:
+    """A point function's body as lines of a generated loop, unindented: each entry
+    ``x[a]`` of an array ``x`` of ``reads`` read as the scalar ``{reads[x]}_a`` (as
+    ``0.0`` where ``reads[x]`` is None), the assignments to ``targets`` kept as in
+    :func:`at_rest`."""
     out = []
     for line in body:
         if line == "    pass":
@@ -403,8 +414,9 @@ def at_rest(body: list[str], targets: dict[str, str]) -> list[str]:
                 target = f"{targets[target]}_{index[1:-1]}"
             else:
                 continue
-        expr = re.sub(r"\bq\[(\d+)\]", r"q_\1", expr)
-        expr = re.sub(r"\bv\[\d+\]", "0.0", expr)
+        for array, scalar in reads.items():
+            pattern = rf"\b{array}\[(\d+)\]"
+            expr = re.sub(pattern, "0.0" if scalar is None else rf"{scalar}_\1", expr)
         out.append(f"{target} {op} {expr}")
     return out
 
@@ -445,6 +457,14 @@ def render_module(spec: KernelSpec, key: str) -> str:
         # straight-line code (no scatter loops: systems with repeated terms have none)
         functions.append(_point_function("point_velocity", list(spec.velocity_entries), large))
     steps = []
+    if spec.velocity_entries and not large and spec.n <= METHOD_UNROLLED:
+        # what a velocity-stage loop generated per method (:mod:`.velocity_steps`) is
+        # written from: the closed-form velocity and the force of the first step
+        velocity = scalar_lines(
+            functions[4][0][3:], {"V": "V", "F": "F"}, {"q": "q", "p": "p"}
+        )
+        force = scalar_lines(functions[3][0][3:], {"Lq": "F"}, {"q": "q", "v": "v"})
+        steps += ["", "", *velocity_text_lines(velocity, force, spec.n, spec.periodic)]
     if spec.generated_loops:
         # the force and the mass as the point functions compute them (their text, so the
         # same rounding; straight-line code, as a system with generated loops is not

@@ -61,11 +61,13 @@ def run_segment(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     loop, before, after = spec.loop_parts()
     if spec.stage_steps is not None:
         result = LoopResult(*spec.stage_steps(*segment.arguments, *after, *out.arrays, *counters))
+    else:
+        result = LoopResult(*loop(*before, *segment.arguments, *after, *out.arrays, *counters))
+    if spec.path == "separable" and spec.stage_steps is not None:
         if result.status == STATUS_NEWTON_FAILED:
             # a step the constant-mass fixed point cannot take: the shared loop's Newton
             return continue_from_last_row(spec, segment, out, result, "separable")
         return result
-    result = LoopResult(*loop(*before, *segment.arguments, *after, *out.arrays, *counters))
     if spec.path == "varying_mass" and result.status != 0:
         return continue_from_last_row(spec, segment, out, result, "newton")
     return result

@@ -95,10 +95,13 @@ class RunSpec:
     hand_over : HandOver
         When the varying-mass loop gives the run up to Newton.
     explicit_steps, stage_steps : callable or None
-        The explicit and stage-form loops generated for this system
-        (:mod:`galerkin_vi.codegen.explicit_steps`, :mod:`galerkin_vi.codegen.stage_steps`),
-        which the explicit and separable paths run in place of the shared ones;
-        None for every other system and path.
+        The explicit loop generated for this system
+        (:mod:`galerkin_vi.codegen.explicit_steps`), and the stage loop generated for it
+        and the method (:mod:`galerkin_vi.codegen.method_steps`,
+        :mod:`galerkin_vi.codegen.stage_steps`; the varying-mass path's:
+        :mod:`galerkin_vi.codegen.velocity_steps`), which the explicit, separable and
+        varying-mass paths run in place of the shared ones; None for every other
+        system and path.
     """
 
     system: LagrangianSystem
@@ -290,6 +293,9 @@ def compiled_run_spec(
     stages = None
     if separable:
         stages = points.stage_loop(method.tables.b, method.tables.c, separable_tables(method))
+    elif path == "varying_mass" and specialize == "system":
+        # the closed-form sweep of Hamilton's equations, written for the system and method
+        stages = points.velocity_loop(varying_mass_tables(method))
     return RunSpec(
         system, method, path, "numba", tol, maxiter, model=model,
         diagonal_mass=bool(summary.diagonal_mass), autonomous=bool(summary.autonomous),

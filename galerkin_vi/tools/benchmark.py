@@ -164,6 +164,7 @@ def galerkin_curve(
     energy_samples: int = 1000,
     energy: Callable[[Trajectory], NDArray | None] | None = None,
     warm_h: float | None = None,
+    specialize: bool | str = True,
 ) -> Curve:
     """The work-precision curve of one galerkin_vi method (not yet swept).
 
@@ -185,8 +186,11 @@ def galerkin_curve(
         ``trajectory -> H`` at its saved states (default ``Trajectory.energy``).
     warm_h : float, optional
         Step of the 10-step warm-up run (default ``t_final / n_start``).
+    specialize : bool or "system"
+        The integrator's (:class:`~galerkin_vi.Integrator`); the warm-up run compiles
+        what it generates.
     """
-    integ = Integrator(system, method)
+    integ = Integrator(system, method, specialize=specialize)
     prm = params
     warm_step = t_final / n_start if warm_h is None else warm_h
 
