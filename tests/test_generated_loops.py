@@ -20,7 +20,7 @@ from galerkin_vi.codegen.spec import LARGE
 from galerkin_vi.method.stage_form import separable_tables
 from galerkin_vi.problems.chains import spring_chain
 from galerkin_vi.problems.forced import driven_oscillator
-from galerkin_vi.problems.gravitation import kepler
+from galerkin_vi.problems.gravitation import kepler, n_body
 from galerkin_vi.problems.mechanics import henon_heiles, pendulum
 from galerkin_vi.run import segment
 from galerkin_vi.run.segment import substeps
@@ -174,6 +174,42 @@ def test_which_systems_get_a_generated_loop():
     # the tangent map keeps the shared loop (whose states it carries bit for bit)
     small = gvi.Integrator(henon_heiles().system, gvi.Composition(4))
     assert small.tangent_run_spec.explicit_steps is None
+
+
+FIVE_BODIES = (1.0, 0.5, 0.3, 0.2, 0.1)
+
+
+@pytest.mark.parametrize("method", [gvi.Galerkin(1), gvi.Composition(4)], ids=["verlet", "c4"])
+@pytest.mark.parametrize(("h", "save_every"), [(0.01, 3), (-0.02, 1)])
+def test_a_small_system_of_repeated_terms_runs_its_unrolled_pair_force_on_request(
+    method, h, save_every
+):
+    # five softened bodies: a pair potential of ten instances (a scatter loop), 10 coordinates
+    problem = n_body(masses=FIVE_BODIES)
+    system = problem.system
+    spec = codegen.kernel_spec(system)
+    assert spec.repeats and spec.repeated_loop and not spec.generated_loops
+    assert gvi.Integrator(system, method).run_spec.explicit_steps is None
+    integrator = gvi.Integrator(system, method, specialize="system")
+    assert integrator.run_spec.explicit_steps.py_func.__name__ == "repeated_explicit_steps"
+    run = dict(h=h, n_steps=400, save_every=save_every)
+    generated = integrator.integrate(problem.q0, problem.v0, **run)
+    shared = integrate_smooth(_shared(integrator), problem.q0, problem.v0, None, **run)
+    for field in ("t", "q", "p"):
+        np.testing.assert_array_equal(getattr(generated, field), getattr(shared, field))
+
+
+def test_only_repeated_terms_alone_get_the_unrolled_pair_force():
+    system = n_body(masses=FIVE_BODIES).system
+    assert codegen.kernel_spec(system).repeated_loop
+    # an external field beside the pairs: L_q is not the scatter loops' alone
+    x0 = system.q[0]
+    params = dict(zip(system.params, system.param_defaults, strict=True))
+    field = gvi.LagrangianSystem(system.L - x0**2 / 2, system.q, system.v, params=params)
+    assert codegen.kernel_spec(field).repeats and not codegen.kernel_spec(field).repeated_loop
+    # too many coordinates: the shared loop
+    many = n_body(masses=(1.0,) * 13).system
+    assert codegen.kernel_spec(many).repeats and not codegen.kernel_spec(many).repeated_loop
 
 
 def test_the_generated_text_runs_uncompiled_on_numpy_arrays():

@@ -132,8 +132,9 @@ def render_explicit_steps(
     periodic: tuple[bool, ...],
     diagonal_mass: bool,
     autonomous: bool,
+    name: str = "explicit_steps",
 ) -> list[str]:
-    """Source lines of ``explicit_steps``, the explicit loop of one system.
+    """Source lines of ``explicit_steps`` (or ``name``), the explicit loop of one system.
 
     Its arguments are those of :func:`galerkin_vi.loops.explicit.explicit_loop`
     less the point functions and the compiled switches: ``(q0, p0, t0, h, n_steps,
@@ -148,7 +149,7 @@ def render_explicit_steps(
     lines = [
         "",
         "",
-        "def explicit_steps(q0, p0, t0, h, n_steps, save_every, prm, Minv, drift, kick_before,"
+        f"def {name}(q0, p0, t0, h, n_steps, save_every, prm, Minv, drift, kick_before,"
         " kick_after, nodes, t_out, q_out, p_out, turns_out):",
     ]
     body = [f"q_{a} = q0[{a}]" for a in range(n)] + [f"p_{a} = p0[{a}]" for a in range(n)]

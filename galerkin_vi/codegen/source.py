@@ -253,6 +253,31 @@ def _scatter_loop(group: ScatterGroup, columns: list[int], value: bool) -> list[
     return lines + ["    " + line for line in body]
 
 
+def repeated_force_lines(spec: KernelSpec) -> list[str]:
+    r"""Lines setting ``g_a`` to :math:`L_q` at the scalars ``q_a``, at :math:`v = 0`,
+    for a system whose :math:`L_q` is its repeated terms alone (``spec.repeated_loop``).
+
+    Each group's scatter loop unrolled: per instance, in table order, its arguments read
+    as scalars, the template's temporaries, and the adds into the coordinates its
+    slots name, so that every entry is the same sum in the same order as the point
+    gradient's scatter loops compute it, bit for bit.
+    """
+    lines = [f"g_{a} = 0.0" for a in range(spec.n)]
+    for group in spec.repeats:
+        columns = [e for e, (array, _) in enumerate(group.entries) if array == "Lq"]
+        if not columns:
+            continue
+        temporaries, adds, _ = _group_code(group)
+        for k in range(group.count):
+            for i, (var, array) in enumerate(group.reads):
+                index = int(group.table[k, i])
+                read = {"q": f"q_{index}", "v": "0.0"}.get(array, f"{array}[{index}]")
+                lines.append(f"{var} = {read}")
+            lines += [line.strip() for line in temporaries]
+            lines += [f"g_{int(group.slots[k, e])} += {adds[e]}" for e in columns]
+    return lines
+
+
 def _scatter_function(name: str, spec: KernelSpec, value: bool) -> tuple[list[str], list[str]]:
     """The part of point function ``name`` that runs the scatter loops, and its tables.
 
@@ -457,6 +482,13 @@ def render_module(spec: KernelSpec, key: str) -> str:
         # straight-line code (no scatter loops: systems with repeated terms have none)
         functions.append(_point_function("point_velocity", list(spec.velocity_entries), large))
     steps = []
+    if spec.repeated_loop:
+        # the explicit loop with the repeated terms' force unrolled (specialize="system")
+        head.append("import numpy as np")
+        steps += render_explicit_steps(
+            repeated_force_lines(spec), spec.n, spec.periodic, spec.diagonal_mass,
+            spec.autonomous, name="repeated_explicit_steps",
+        )  # fmt: skip
     if spec.velocity_entries and not large and spec.n <= METHOD_UNROLLED:
         # what a velocity-stage loop generated per method (:mod:`.velocity_steps`) is
         # written from: the closed-form velocity and the force of the first step

@@ -47,7 +47,7 @@ __all__ = [
     "use_banded",
 ]
 
-GENERATOR_VERSION = "15"
+GENERATOR_VERSION = "16"
 
 #: the fewest instances of a term that become a scatter loop (:mod:`.scatter`)
 MIN_REPEATS = 8
@@ -71,6 +71,9 @@ class KernelSpec:
     forces, and ``lagrangian`` the sum of those terms. ``generated_loops``:
     the module also holds the system's own explicit loop (:mod:`.explicit_steps`)
     and, with a diagonal mass, stage-form loop (:mod:`.stage_steps`).
+    ``repeated_loop``: the module also holds ``repeated_explicit_steps``, the
+    explicit loop of a small system whose force is its repeated terms alone, with
+    their scatter loops unrolled in their order (:func:`.source.repeated_force_lines`).
     """
 
     n: int
@@ -96,6 +99,7 @@ class KernelSpec:
     constraint_rate_entries: tuple[tuple[str, sp.Expr], ...] = ()
     constraint_hessian_entries: tuple[tuple[str, sp.Expr], ...] = ()
     repeats: tuple[ScatterGroup, ...] = ()
+    repeated_loop: bool = False
 
     @property
     def constraint_parts(self) -> tuple[tuple[str, sp.Expr], ...]:
@@ -255,6 +259,10 @@ def kernel_spec(system: LagrangianSystem, repeats: bool = True) -> KernelSpec:
         diagonal_mass=system.structure.constant_mass
         and all(a == b for (a, b), e in full.Lvv.todok().items() if e != 0),
         repeats=groups,
+        repeated_loop=bool(groups)
+        and has_generated_loops(system, p)
+        and not any(target.startswith("Lq[") for target, _ in gradient)
+        and all(array in ("q", "v", "prm") for g in groups for _, array in g.reads),
         **_constraint_entries(system, rename),
     )
 
@@ -453,6 +461,7 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
                 spec.separable,
                 spec.diagonal_mass,
                 spec.generated_loops,
+                spec.repeated_loop,
             )
         ),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.constraint_parts),

@@ -288,6 +288,10 @@ def compiled_run_spec(
     # the tangent map's explicit loop is the shared one (its states are that loop's)
     explicit = path == "explicit" and not hessian and specialize
     steps = points.generated_loop("explicit_steps") if explicit else None
+    if explicit and steps is None and specialize == "system":
+        # a small system of repeated terms: their scatter loops unrolled (compiled for
+        # seconds, so only on request)
+        steps = points.generated_loop("repeated_explicit_steps")
     # the generated stage-form loop iterates the constant-mass fixed point only
     separable = path == "separable" and constant_mass and specialize == "system"
     stages = None
