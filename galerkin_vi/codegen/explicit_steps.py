@@ -36,7 +36,9 @@ import sympy as sp
 
 __all__ = [
     "EXPLICIT_UNROLLED",
+    "compensated_lines",
     "has_generated_loops",
+    "initial_state_lines",
     "indented",
     "render_explicit_steps",
     "row_lines",
@@ -104,6 +106,34 @@ def saved_row_lines(
     """Lines saving ``(t, q, p)`` as the next row (``saved``) when ``condition`` holds."""
     row = row_lines("saved", t, q, p, n, periodic, lost, turns)
     return [f"if {condition}:", *indented(row, 1), "    saved += 1"]
+
+
+def initial_state_lines(n: int, periodic: tuple[bool, ...], setup: list[str]) -> list[str]:
+    """The start of an implicit loop of one system: ``q_a``, ``p_a`` from ``q0``, ``p0``,
+    the lines ``setup`` (at ``t = t0``, before the angles wrap), the compensations
+    ``l_a``, ``e_a`` and turns ``r_a`` zeroed, the angles wrapped, row 0 saved."""
+    angles = [a for a in range(n) if periodic[a]]
+    lines = [f"q_{a} = q0[{a}]" for a in range(n)] + [f"p_{a} = p0[{a}]" for a in range(n)]
+    lines += setup
+    lines += [f"l_{a} = 0.0" for a in range(n)] + [f"e_{a} = 0.0" for a in range(n)]
+    lines += [f"r_{a} = 0.0" for a in angles]
+    for a in angles:
+        lines += wrap_lines(a)
+    return [*lines, *row_lines("0", "t0", "q", "p", n, periodic, "l", "r"), "saved = 1"]
+
+
+def compensated_lines(x: str, lost: str, d: str, n: int) -> list[str]:
+    """Lines adding ``{d}_a`` to ``{x}_a`` for every coordinate with Kahan compensation
+    in ``{lost}_a``, as the shared loops' ``compensated_add`` and ``advance_position``."""
+    lines = []
+    for a in range(n):
+        lines += [
+            f"_y = {d}_{a} - {lost}_{a}",
+            f"_s = {x}_{a} + _y",
+            f"{lost}_{a} = (_s - {x}_{a}) - _y",
+            f"{x}_{a} = _s",
+        ]
+    return lines
 
 
 def wrap_lines(a: int) -> list[str]:

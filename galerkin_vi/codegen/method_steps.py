@@ -35,13 +35,24 @@ import hashlib
 
 import numpy as np
 
-from .explicit_steps import indented, row_lines, saved_row_lines, wrap_lines
-from .stage_steps import IMPORTS, force_at
+from .explicit_steps import (
+    compensated_lines,
+    indented,
+    initial_state_lines,
+    row_lines,
+    saved_row_lines,
+    wrap_lines,
+)
+from .stage_steps import IMPORTS, SWEEP_END, force_at
 
 __all__ = [
     "LOOP_TEXT",
+    "RETURN_LINES",
     "METHOD_UNROLLED",
+    "step_end_lines",
     "has_method_steps",
+    "kept_row_lines",
+    "literal",
     "loop_text_lines",
     "method_digest",
     "render_method_module",
@@ -62,6 +73,41 @@ _STATUS_SINGULAR = 2
 _STATUS_NONFINITE = 3
 
 
+#: the return of a loop that counts its sweeps in locals, after its last step
+RETURN_LINES = ["iteration_total[0] += total", f"return {_STATUS_OK}, n_steps, saved, worst, 0.0"]
+
+
+def step_end_lines(n: int, periodic: tuple[bool, ...]) -> list[str]:
+    """The end of a step of a loop that counts its sweeps in locals (``row_its``,
+    ``total``): the angles wrapped, and the row due after step ``k`` saved with its
+    sweeps, found by a count down (``countdown``, from ``save_every``) rather than
+    ``(k + 1) % save_every``, whose integer division is a share of a small system's step."""
+    row = row_lines("saved", "t0 + (k + 1) * h", "q", "p", n, periodic, "l", "r")
+    wraps = [line for a in range(n) if periodic[a] for line in wrap_lines(a)]
+    return [
+        *wraps,
+        "countdown -= 1",
+        "if countdown == 0 or k + 1 == n_steps:",
+        "    if row_its > iterations_out[saved - 1]:",
+        "        iterations_out[saved - 1] = row_its",
+        "    row_its = 0",
+        *indented([*row, "saved += 1", "countdown = save_every"], 1),
+    ]
+
+
+def kept_row_lines(n: int, periodic: tuple[bool, ...], change: str) -> list[str]:
+    """The return of a loop that counts its sweeps in locals, at a step ``k`` it does not
+    take: the sweeps written into the rows' records, the state before the step saved as
+    the last row (due or not), and the loop's 5-tuple with ``change`` last."""
+    return [
+        "if row_its > iterations_out[saved - 1]:",
+        "    iterations_out[saved - 1] = row_its",
+        "iteration_total[0] += total",
+        *saved_row_lines("k % save_every != 0", "tk", "q", "p", n, periodic, "l", "r"),
+        f"return status, k, saved, worst, {change}",
+    ]
+
+
 def has_method_steps(n: int, tables) -> bool:
     """Whether a system of ``n`` coordinates gets a loop written for the method of
     ``tables`` (its implicit points times ``n`` at most :data:`METHOD_UNROLLED`)."""
@@ -79,7 +125,7 @@ def method_digest(b, c, tables) -> str:
     return h.hexdigest()[:24]
 
 
-def _lit(x: float) -> str:
+def literal(x: float) -> str:
     """``x`` as a literal that parses to the same double (negative ones in brackets)."""
     text = repr(float(x))
     return f"({text})" if text.startswith("-") else text
@@ -124,10 +170,9 @@ def render_method_steps(
     reuse = bool(tables.reuse_endpoint)
     r, u, s = len(b), len(implicit), control_p.shape[0]
     coords = range(n)
-    angles = [a for a in coords if periodic[a]]
 
     def time(j: int) -> str:
-        return "0.0" if autonomous else f"tk + {_lit(c[j])} * h"
+        return "0.0" if autonomous else f"tk + {literal(c[j])} * h"
 
     def forces_at(j: int, point: str, target: str) -> list[str]:
         lines = [f"t = {time(j)}", *force_at(point, force)]
@@ -142,28 +187,23 @@ def render_method_steps(
         " reuse_endpoint, tol, maxiter, cheap_first, t_out, q_out, p_out, turns_out,"
         " iterations_out, iteration_total):",
     ]
-    body = [f"q_{a} = q0[{a}]" for a in coords] + [f"p_{a} = p0[{a}]" for a in coords]
-    body += ["t = t0", *mass]
-    body += [f"l_{a} = 0.0" for a in coords] + [f"e_{a} = 0.0" for a in coords]
-    body += [f"r_{a} = 0.0" for a in angles]
-    for a in angles:
-        body += wrap_lines(a)
-    body += row_lines("0", "t0", "q", "p", n, periodic, "l", "r")
-    body += ["saved = 1"]
+    body = initial_state_lines(n, periodic, ["t = t0", *mass])
     regular = " and ".join(f"m_{a} != 0.0" for a in coords)
     body += [f"if not ({regular}):", f"    return {_STATUS_SINGULAR}, 0, saved, 0.0, np.inf"]
     body += [f"w_{a} = 1.0 / m_{a}" for a in coords]
-    body += [f"Z_{i}_{a} = {_lit(c[implicit[i]])} * h * v0[{a}]" for i in range(u) for a in coords]
+    body += [
+        f"Z_{i}_{a} = {literal(c[implicit[i]])} * h * v0[{a}]" for i in range(u) for a in coords
+    ]
     body += ["h2 = h * h"]
     # the table entries times h or h^2, once per call (the shared loop's products)
-    body += [f"hp_{i} = h * {_lit(stage_p[i])}" for i in range(u)]
-    body += [f"hc_{mu} = h * {_lit(control_p[mu])}" for mu in sorted(needed)]
+    body += [f"hp_{i} = h * {literal(stage_p[i])}" for i in range(u)]
+    body += [f"hc_{mu} = h * {literal(control_p[mu])}" for mu in sorted(needed)]
     weights: dict[tuple[int, int], str] = {}
     for i in range(u):
         for j in range(r):
             if stage_force[i, j] != 0.0:
                 weights[i, j] = f"W_{i}_{j}"
-                body.append(f"W_{i}_{j} = h2 * {_lit(stage_force[i, j])}")
+                body.append(f"W_{i}_{j} = h2 * {literal(stage_force[i, j])}")
     body += [f"F_{j}_{a} = 0.0" for j in range(r) for a in coords]
     body += [f"X_{i}_{a} = 0.0" for i in range(u) for a in coords]
     body += [
@@ -231,38 +271,10 @@ def render_method_steps(
                 f"Z_{i}_{a} = updated",
                 f"P_{i}_{a} = moved",
             ]
-    sweep += [
-        "if not shift < 1e300:",
-        f"    status = {_STATUS_NONFINITE}",
-        "    increment = np.inf",
-        "    break",
-        "if shift == 0.0:",
-        f"    status = {_STATUS_OK}",
-        "    current = True",
-        "    break",
-        "scale = 1.0 + max(size, base)",
-        "if too_slow(increment, previous, its, contraction, budget, tol * scale):",
-        "    break",
-        "decision = newton_status(increment, previous, scale, tol, its, maxiter)",
-        "if decision == CONVERGED:",
-        f"    status = {_STATUS_OK}",
-        "    break",
-        "if decision != CONTINUE or its >= budget:",
-        "    break",
-        "previous = increment",
-    ]
+    sweep += SWEEP_END
     if u:
         step += ["while its < maxiter:", *indented(sweep, 1)]
-    # the sweeps are counted in locals and written into the rows' records when a row
-    # is saved and when the function returns (an array store per step is a share of
-    # a small system's step)
-    flush = [
-        "if row_its > iterations_out[saved - 1]:",
-        "    iterations_out[saved - 1] = row_its",
-        "iteration_total[0] += total",
-    ]
-    kept = flush + saved_row_lines("k % save_every != 0", "tk", "q", "p", n, periodic, "l", "r")
-    kept.append("return status, k, saved, worst, increment")
+    kept = kept_row_lines(n, periodic, "increment")
     step += [f"if status == {_STATUS_NEWTON_FAILED}:", *indented(kept, 1)]
     step += [
         "if its > row_its:",
@@ -273,16 +285,16 @@ def render_method_steps(
     end = ["if not current:", *indented(implicit_forces, 1)] if u else []
     for mu in sorted(needed):
         for a in coords:
-            terms = [(_lit(control_force[mu, j]), f"F_{j}_{a}") for j in range(r)
+            terms = [(literal(control_force[mu, j]), f"F_{j}_{a}") for j in range(r)
                      if control_force[mu, j] != 0.0]  # fmt: skip
             end.append(f"C_{mu}_{a} = (hc_{mu} * p_{a} + h2 * ({_sum(terms)})) * w_{a}")
     for j in rest:
         for a in coords:
-            terms = [(_lit(Phi1[j, mu]), f"C_{mu}_{a}") for mu in range(s) if Phi1[j, mu] != 0.0]
+            terms = [(literal(Phi1[j, mu]), f"C_{mu}_{a}") for mu in range(s) if Phi1[j, mu] != 0.0]
             end.append(f"Q_{a} = q_{a} + ({_sum(terms)})")
         end += forces_at(j, "Q", f"F_{j}")
     for a in coords:
-        terms = [(_lit(b[j]), f"F_{j}_{a}") for j in range(r) if b[j] != 0.0]
+        terms = [(literal(b[j]), f"F_{j}_{a}") for j in range(r) if b[j] != 0.0]
         end.append(f"d_{a} = h * ({_sum(terms)})")
     # one test of a sum: an inf or NaN in any term makes it fail, as the shared loop's
     # test of each term does (which a sum past 1e300 of terms below it also fails here)
@@ -291,43 +303,16 @@ def render_method_steps(
     step += indented(end, 1)
     step += [f"if status != {_STATUS_OK}:", *indented(kept, 1)]
     step += ["if residual > worst:", "    worst = residual"]
-    for a in coords:
-        # compensated (Kahan) sums, as the shared loop's compensated_add and advance_position
-        step += [
-            f"_z = d_{a} - e_{a}",
-            f"_s = p_{a} + _z",
-            f"e_{a} = (_s - p_{a}) - _z",
-            f"p_{a} = _s",
-        ]
+    step += compensated_lines("p", "e", "d", n)
     for i in range(u):
         for a in coords:
-            terms = [(_lit(X[i, j]), f"F_{j}_{a}") for j in range(r) if X[i, j] != 0.0]
+            terms = [(literal(X[i, j]), f"F_{j}_{a}") for j in range(r) if X[i, j] != 0.0]
             step.append(f"X_{i}_{a} = {_sum(terms)}")
     if reuse:
         step += [f"F_0_{a} = F_{r - 1}_{a}" for a in coords] + ["have_start_force = True"]
-    for a in coords:
-        step += [
-            f"_y = C_{s - 1}_{a} - l_{a}",
-            f"_s = q_{a} + _y",
-            f"l_{a} = (_s - q_{a}) - _y",
-            f"q_{a} = _s",
-        ]
-    for a in angles:
-        step += wrap_lines(a)
-    # a count down to the next saved row, not (k + 1) % save_every: an integer
-    # division per step is a share of a small system's step
-    row = row_lines("saved", "t0 + (k + 1) * h", "q", "p", n, periodic, "l", "r")
-    step += [
-        "countdown -= 1",
-        "if countdown == 0 or k + 1 == n_steps:",
-        "    if row_its > iterations_out[saved - 1]:",
-        "        iterations_out[saved - 1] = row_its",
-        "    row_its = 0",
-        *indented([*row, "saved += 1", "countdown = save_every"], 1),
-    ]
-    body += indented(step, 1)
-    body += ["iteration_total[0] += total", f"return {_STATUS_OK}, n_steps, saved, worst, 0.0"]
-    return lines + indented(body, 1)
+    step += compensated_lines("q", "l", f"C_{s - 1}", n)
+    step += step_end_lines(n, periodic)
+    return lines + indented([*body, *indented(step, 1), *RETURN_LINES], 1)
 
 
 def loop_text_lines(

@@ -29,9 +29,15 @@ from __future__ import annotations
 
 import re
 
-from .explicit_steps import indented, row_lines, saved_row_lines, wrap_lines
+from .explicit_steps import (
+    compensated_lines,
+    indented,
+    initial_state_lines,
+    saved_row_lines,
+    wrap_lines,
+)
 
-__all__ = ["IMPORTS", "force_at", "render_stage_steps"]
+__all__ = ["IMPORTS", "SWEEP_END", "force_at", "render_stage_steps"]
 
 # the loops' status codes (galerkin_vi.loops.abi), written into the generated text
 _STATUS_OK = 0
@@ -46,6 +52,30 @@ IMPORTS = [
     "from galerkin_vi.loops.stage_form import (",
     "    MASS_CONTRACTION, MASS_CONTRACTION_MAX, NEWTON_RESERVE, too_slow,",
     ")",
+]
+
+
+#: the end of a sweep of the constant-mass fixed point: a bit-identical sweep has
+#: converged, else the shared stopping rule (its hand-over to Newton included)
+SWEEP_END = [
+    "if not shift < 1e300:",
+    f"    status = {_STATUS_NONFINITE}",
+    "    increment = np.inf",
+    "    break",
+    "if shift == 0.0:",
+    f"    status = {_STATUS_OK}",
+    "    current = True",
+    "    break",
+    "scale = 1.0 + max(size, base)",
+    "if too_slow(increment, previous, its, contraction, budget, tol * scale):",
+    "    break",
+    "decision = newton_status(increment, previous, scale, tol, its, maxiter)",
+    "if decision == CONVERGED:",
+    f"    status = {_STATUS_OK}",
+    "    break",
+    "if decision != CONTINUE or its >= budget:",
+    "    break",
+    "previous = increment",
 ]
 
 
@@ -81,15 +111,8 @@ def render_stage_steps(
         " iterations_out, iteration_total):",
     ]
     body = ["r = b.shape[0]", "s = control_p.shape[0]", "u = implicit.shape[0]"]
-    body += [f"q_{a} = q0[{a}]" for a in coords] + [f"p_{a} = p0[{a}]" for a in coords]
     # M as the shared loop forms it: the Hessian point function at (t0, q0, 0)
-    body += ["t = t0", *mass]
-    body += [f"l_{a} = 0.0" for a in coords] + [f"e_{a} = 0.0" for a in coords]
-    body += [f"r_{a} = 0.0" for a in angles]
-    for a in angles:
-        body += wrap_lines(a)
-    body += row_lines("0", "t0", "q", "p", n, periodic, "l", "r")
-    body += ["saved = 1"]
+    body += initial_state_lines(n, periodic, ["t = t0", *mass])
     regular = " and ".join(f"m_{a} != 0.0" for a in coords)
     body += [f"if not ({regular}):", f"    return {_STATUS_SINGULAR}, 0, saved, 0.0, np.inf"]
     body += [f"w_{a} = 1.0 / m_{a}" for a in coords]
@@ -170,27 +193,7 @@ def render_stage_steps(
             f"shift += abs((q_{a} + updated) - (q_{a} + old))",
             f"Z[il, {a}] = updated",
         ]
-    sweep += ["for il in range(u):", *indented(update, 1)]
-    sweep += [
-        "if not shift < 1e300:",
-        f"    status = {_STATUS_NONFINITE}",
-        "    increment = np.inf",
-        "    break",
-        "if shift == 0.0:",
-        f"    status = {_STATUS_OK}",
-        "    current = True",
-        "    break",
-        "scale = 1.0 + max(size, base)",
-        "if too_slow(increment, previous, its, contraction, budget, tol * scale):",
-        "    break",
-        "decision = newton_status(increment, previous, scale, tol, its, maxiter)",
-        "if decision == CONVERGED:",
-        f"    status = {_STATUS_OK}",
-        "    break",
-        "if decision != CONTINUE or its >= budget:",
-        "    break",
-        "previous = increment",
-    ]
+    sweep += ["for il in range(u):", *indented(update, 1), *SWEEP_END]
     step += ["while u > 0 and its < maxiter:", *indented(sweep, 1)]
     # a step the fixed point cannot take (or that fails): the state before it is the
     # last row, due for saving or not
@@ -229,27 +232,14 @@ def render_stage_steps(
     step += indented(end, 1)
     step += [f"if status != {_STATUS_OK}:", *indented(kept, 1)]
     step += ["if residual > worst:", "    worst = residual"]
-    for a in coords:
-        # compensated (Kahan) sums, as the shared loop's compensated_add and advance_position
-        step += [
-            f"_z = d_{a} - e_{a}",
-            f"_s = p_{a} + _z",
-            f"e_{a} = (_s - p_{a}) - _z",
-            f"p_{a} = _s",
-        ]
+    step += compensated_lines("p", "e", "d", n)
     extrapolate = _sums("j", "r", "X[il, j]", "F[j, {a}]", n)
     extrapolate += [f"F_next[il, {a}] = acc_{a}" for a in coords]
     step += ["for il in range(u):", *indented(extrapolate, 1)]
     step += ["if reuse_endpoint:"]
     step += [f"    F[0, {a}] = F[r - 1, {a}]" for a in coords]
     step += ["    have_start_force = True"]
-    for a in coords:
-        step += [
-            f"_y = C[s - 1, {a}] - l_{a}",
-            f"_s = q_{a} + _y",
-            f"l_{a} = (_s - q_{a}) - _y",
-            f"q_{a} = _s",
-        ]
+    step += [f"dq_{a} = C[s - 1, {a}]" for a in coords] + compensated_lines("q", "l", "dq", n)
     for a in angles:
         step += wrap_lines(a)
     due = "(k + 1) % save_every == 0 or k + 1 == n_steps"

@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .explicit_steps import indented, row_lines, saved_row_lines, wrap_lines
-from .method_steps import METHOD_UNROLLED
+from .explicit_steps import compensated_lines, indented, initial_state_lines
+from .method_steps import METHOD_UNROLLED, RETURN_LINES, kept_row_lines, literal, step_end_lines
 
 __all__ = [
     "VELOCITY_LOOP_TEXT",
@@ -57,11 +57,6 @@ def has_velocity_steps(n: int, tables) -> bool:
     """Whether a system of ``n`` coordinates gets a loop written for the method of
     ``tables`` (its stages times ``n`` at most :data:`.method_steps.METHOD_UNROLLED`)."""
     return len(tables.b) * n <= METHOD_UNROLLED
-
-
-def _lit(x: float) -> str:
-    text = repr(float(x))
-    return f"({text})" if text.startswith("-") else text
 
 
 def _sum(terms: list[tuple[str, str]]) -> str:
@@ -108,7 +103,6 @@ def render_velocity_steps(text: dict, b, c, A, Abar, X) -> list[str]:  # noqa: N
     r = len(b)
     coords = range(n)
     stages = range(r)
-    angles = [a for a in coords if periodic[a]]
     lines = [
         "",
         "",
@@ -116,13 +110,7 @@ def render_velocity_steps(text: dict, b, c, A, Abar, X) -> list[str]:  # noqa: N
         " tol, maxiter, contraction, allowance, t_out, q_out, p_out, turns_out,"
         " iterations_out, iteration_total):",
     ]
-    body = [f"q_{a} = q0[{a}]" for a in coords] + [f"p_{a} = p0[{a}]" for a in coords]
-    body += [f"l_{a} = 0.0" for a in coords] + [f"e_{a} = 0.0" for a in coords]
-    body += [f"r_{a} = 0.0" for a in angles]
-    for a in angles:
-        body += wrap_lines(a)
-    body += row_lines("0", "t0", "q", "p", n, periodic, "l", "r")
-    body += ["saved = 1"]
+    body = initial_state_lines(n, periodic, [])
     # the first step starts from v0 and the force at (q0, v0) at every stage
     body += [f"v_{a} = v0[{a}]" for a in coords]
     body += ["t = t0"] + [f"F_{a} = 0.0" for a in coords] + list(text["force"])
@@ -140,15 +128,15 @@ def render_velocity_steps(text: dict, b, c, A, Abar, X) -> list[str]:  # noqa: N
         "for k in range(n_steps):",
     ]
     step = ["tk = t0 + k * h"]
+    def combination(weights, values: str, a: int) -> str:
+        """``sum_j weights[j] values_j_a`` over the nonzero weights, in order."""
+        return _sum([(literal(w), f"{values}_{j}_{a}") for j, w in enumerate(weights) if w])
+
     extrapolate = []
     for i in stages:
         for a in coords:
-            extrapolate.append(
-                f"xv_{i}_{a} = {_sum([(_lit(X[i, j]), f'V_{j}_{a}') for j in stages if X[i, j]])}"
-            )
-            extrapolate.append(
-                f"xf_{i}_{a} = {_sum([(_lit(X[i, j]), f'F_{j}_{a}') for j in stages if X[i, j]])}"
-            )
+            extrapolate.append(f"xv_{i}_{a} = {combination(X[i], 'V', a)}")
+            extrapolate.append(f"xf_{i}_{a} = {combination(X[i], 'F', a)}")
     extrapolate += [f"V_{i}_{a} = xv_{i}_{a}" for i in stages for a in coords]
     extrapolate += [f"F_{i}_{a} = xf_{i}_{a}" for i in stages for a in coords]
     step += ["if k > 0:", *indented(extrapolate, 1)]
@@ -166,8 +154,7 @@ def render_velocity_steps(text: dict, b, c, A, Abar, X) -> list[str]:  # noqa: N
         out = []
         for i in stages:
             for a in coords:
-                accq = _sum([(_lit(A[i, j]), f"V_{j}_{a}") for j in stages if A[i, j]])
-                accp = _sum([(_lit(Abar[i, j]), f"F_{j}_{a}") for j in stages if Abar[i, j]])
+                accq, accp = combination(A[i], "V", a), combination(Abar[i], "F", a)
                 if not compare:
                     out.append(f"Q_{i}_{a} = q_{a} + h * ({accq})")
                     out.append(f"P_{i}_{a} = p_{a} + h * ({accp})")
@@ -192,7 +179,7 @@ def render_velocity_steps(text: dict, b, c, A, Abar, X) -> list[str]:  # noqa: N
     step += stage_values(compare=False)
     sweep = ["its += 1"]
     for i in stages:
-        sweep += [f"t = tk + {_lit(c[i])} * h"]
+        sweep += [f"t = tk + {literal(c[i])} * h"]
         sweep += [f"V_{i}_{a} = 0.0" for a in coords] + [f"F_{i}_{a} = 0.0" for a in coords]
         sweep += _at(text["velocity"], {"q": f"Q_{i}", "p": f"P_{i}", "V": f"V_{i}", "F": f"F_{i}"})
     sweep += ["change_q = 0.0", "change_p = 0.0", "moved = False", *stage_values(compare=True)]
@@ -219,8 +206,8 @@ def render_velocity_steps(text: dict, b, c, A, Abar, X) -> list[str]:  # noqa: N
     step += ["if its > row_its:", "    row_its = its", "total += its"]
     end = []
     for a in coords:
-        end.append(f"dq_{a} = h * ({_sum([(_lit(b[j]), f'V_{j}_{a}') for j in stages if b[j]])})")
-        end.append(f"dp_{a} = h * ({_sum([(_lit(b[j]), f'F_{j}_{a}') for j in stages if b[j]])})")
+        end.append(f"dq_{a} = h * ({combination(b, 'V', a)})")
+        end.append(f"dp_{a} = h * ({combination(b, 'F', a)})")
     finite = " + ".join(f"abs(dq_{a}) + abs(dp_{a})" for a in coords)
     end += [f"if not ({finite}) < 1e300:", f"    status = {_STATUS_NONFINITE}"]
     step += [f"if status == {_STATUS_OK}:", *indented(end, 1)]
@@ -233,36 +220,11 @@ def render_velocity_steps(text: dict, b, c, A, Abar, X) -> list[str]:  # noqa: N
         f"    if k >= 1 and mean_sweeps > allowance + {r}:",
         f"        status = {_STATUS_NEWTON_FAILED}",
     ]
-    kept = [
-        "if row_its > iterations_out[saved - 1]:",
-        "    iterations_out[saved - 1] = row_its",
-        "iteration_total[0] += total",
-        *saved_row_lines("k % save_every != 0", "tk", "q", "p", n, periodic, "l", "r"),
-        "return status, k, saved, worst, change",
-    ]
+    kept = kept_row_lines(n, periodic, "change")
     step += [f"if status != {_STATUS_OK}:", *indented(kept, 1)]
-    for x, lost, d in (("p", "e", "dp"), ("q", "l", "dq")):
-        for a in coords:
-            step += [
-                f"_z = {d}_{a} - {lost}_{a}",
-                f"_s = {x}_{a} + _z",
-                f"{lost}_{a} = (_s - {x}_{a}) - _z",
-                f"{x}_{a} = _s",
-            ]
-    for a in angles:
-        step += wrap_lines(a)
-    row = row_lines("saved", "t0 + (k + 1) * h", "q", "p", n, periodic, "l", "r")
-    step += [
-        "countdown -= 1",
-        "if countdown == 0 or k + 1 == n_steps:",
-        "    if row_its > iterations_out[saved - 1]:",
-        "        iterations_out[saved - 1] = row_its",
-        "    row_its = 0",
-        *indented([*row, "saved += 1", "countdown = save_every"], 1),
-    ]
-    body += indented(step, 1)
-    body += ["iteration_total[0] += total", f"return {_STATUS_OK}, n_steps, saved, worst, 0.0"]
-    return lines + indented(body, 1)
+    step += compensated_lines("p", "e", "dp", n) + compensated_lines("q", "l", "dq", n)
+    step += step_end_lines(n, periodic)
+    return lines + indented([*body, *indented(step, 1), *RETURN_LINES], 1)
 
 
 def render_velocity_module(text: dict, tables, key: str) -> str:
