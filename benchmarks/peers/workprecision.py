@@ -735,7 +735,8 @@ def _per_step_row(case: Case, key: str, cfg: BenchConfig) -> dict:
     (s, family), kernel = PER_STEP_PAIRS[key]
     h = case.per_step_h
     prm = case.problem.params
-    integ = gvi.Integrator(case.problem.system, gvi.Galerkin(s, bm.quadrature(s, family)))
+    method = gvi.Galerkin(s, bm.quadrature(s, family))
+    integ = gvi.Integrator(case.problem.system, method, specialize=cfg.specialize)
     run_hw, _ = _hw_runner(case, kernel)
     variants = {}
     if kernel.startswith("gauss"):
