@@ -195,3 +195,25 @@ def test_the_generated_text_runs_uncompiled_on_numpy_arrays():
     np.testing.assert_allclose(q_out, compiled.q, rtol=1e-14, atol=1e-16)
     np.testing.assert_allclose(p_out, compiled.p, rtol=1e-14, atol=1e-16)
     np.testing.assert_allclose(iterations, compiled.newton_iterations, atol=1)
+
+
+def test_run_options_give_the_shared_loops_results():
+    # t_eval, events and dense output read the generated loop's rows as the shared one's
+    system, q0, v0, params = CASES["double_pendulum"]
+    method = GAUSS[4]
+    generated = gvi.Integrator(system, method, specialize="system")
+    shared = gvi.Integrator(system, method)
+    assert generated.run_spec.stage_steps is not None and shared.run_spec.stage_steps is None
+    times = np.linspace(0.0, 4.9, 37)
+
+    def crossing(t, q, v):
+        return q[1]
+
+    run = dict(h=0.01, n_steps=500, params=params, t_eval=times, events=[crossing])
+    a, b = generated.integrate(q0, v0, **run), shared.integrate(q0, v0, **run)
+    np.testing.assert_array_equal(a.q, b.q)
+    assert len(a.t_events[0]) > 0
+    np.testing.assert_array_equal(a.t_events[0], b.t_events[0])
+    dense = dict(t_span=(0.0, 3.3), h=0.01, params=params, dense_output=True)
+    a, b = generated.integrate(q0, v0, **dense), shared.integrate(q0, v0, **dense)
+    np.testing.assert_array_equal(a.sol(1.234), b.sol(1.234))
