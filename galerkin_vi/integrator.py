@@ -64,14 +64,15 @@ class Integrator:
         (:mod:`galerkin_vi.codegen.stage_steps`, 1.5–4 s once per system). With a
         mass matrix that varies and a closed-form velocity, ``"system"`` runs the
         ``"varying_mass"`` sweep as a loop generated for the system and method
-        (:mod:`galerkin_vi.codegen.velocity_steps`; 1.5–3.5 s, 0.63–0.73 of the
+        (:mod:`galerkin_vi.codegen.velocity_steps`; 1.6–3.2 s, 0.63–0.73 of the
         time), and with a force that is a pair potential alone (repeated terms, at
         most 24 coordinates) the explicit path as a loop with the pairs unrolled
         (about 3 s, 0.9 of the time). With either true value the explicit path
         (compositions, Störmer–Verlet) of a system without repeated terms runs the
         loop generated for the system, which compiles in a fraction of a second;
         ``False`` keeps the shared loops (compositions still take the explicit path).
-        Every generated loop takes the shared loop's steps bit for bit.
+        Every generated loop takes the shared loop's steps bit for bit (up to the sign
+        of an exact zero).
     fixed_point : bool or "persistent"
         With a mass matrix that varies, iterate the stage velocities by fixed
         point (the ``"varying_mass"`` loop; default) rather than by Newton. The

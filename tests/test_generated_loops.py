@@ -14,6 +14,7 @@ import sympy as sp
 
 import galerkin_vi as gvi
 from galerkin_vi import codegen
+from galerkin_vi.codegen import compiled
 from galerkin_vi.codegen.explicit_steps import EXPLICIT_UNROLLED
 from galerkin_vi.codegen.method_steps import METHOD_UNROLLED
 from galerkin_vi.codegen.spec import LARGE
@@ -207,6 +208,16 @@ def test_only_repeated_terms_alone_get_the_unrolled_pair_force():
     params = dict(zip(system.params, system.param_defaults, strict=True))
     field = gvi.LagrangianSystem(system.L - x0**2 / 2, system.q, system.v, params=params)
     assert codegen.kernel_spec(field).repeats and not codegen.kernel_spec(field).repeated_loop
+    # a repeated gyroscopic term a(t) . v (a scatter group of its own): the drift of the
+    # shared loop averages a over the sub-step, the generated loop has no such term
+    t = sp.Symbol("t")
+    gauge = sum(sp.cos(t) * w / 10 for w in system.v)
+    gyroscopic = gvi.LagrangianSystem(system.L + gauge, system.q, system.v, params=params, t=t)
+    spec = codegen.kernel_spec(gyroscopic)
+    assert any(array == "Lv" for group in spec.repeats for array, _ in group.entries)
+    assert not spec.repeated_loop
+    chosen = gvi.Integrator(gyroscopic, gvi.Galerkin(1), specialize="system")
+    assert chosen.run_spec.explicit_steps is None
     # too many coordinates: the shared loop
     many = n_body(masses=(1.0,) * 13).system
     assert codegen.kernel_spec(many).repeats and not codegen.kernel_spec(many).repeated_loop
@@ -301,6 +312,44 @@ def test_the_generated_stage_loop_takes_the_shared_loops_steps_and_sweeps(
         np.testing.assert_array_equal(generated.q_reduced, shared.q_reduced)
 
 
+def _outputs(n_steps: int, save_every: int, n: int) -> list[np.ndarray]:
+    rows = -(-n_steps // save_every) + 2
+    return [
+        np.zeros(rows), np.zeros((rows, n)), np.zeros((rows, n)), np.zeros((rows, n)),
+        np.zeros(rows - 1, dtype=np.uint8), np.zeros(1, dtype=np.int64),
+    ]  # fmt: skip
+
+
+@pytest.mark.parametrize("method", ["gauss2", "lobatto5"])
+@pytest.mark.parametrize(
+    ("q0", "h", "n_steps", "save_every"),
+    [(2.0, 0.01, 3000, 7), (2.0, 0.01, 3000, 4), (2.6, 0.2, 10, 3)],
+)
+def test_a_methods_loop_fails_and_hands_over_as_the_systems_loop(
+    method, q0, h, n_steps, save_every
+):
+    # V = -exp(q^2)/2 throws q outwards ever faster: the fixed point gives up (status 1)
+    # or the state overflows (status 3), mid-row or at a row's end; both generated loops
+    # called alike return the same tuple and write the same rows and sweep counts
+    q, v = sp.symbols("q v")
+    system = gvi.LagrangianSystem(v**2 / 2 + sp.exp(q**2) / 2, [q], [v])
+    integrator = gvi.Integrator(system, METHODS[method], specialize="system")
+    assert _loop_name(integrator) == "method_steps"
+    points = compiled.load_point_functions(codegen.kernel_spec(system))
+    _, _, after = integrator.run_spec.loop_parts()
+    results = []
+    for loop in (points.generated_loop("stage_steps"), integrator.run_spec.stage_steps):
+        out = _outputs(n_steps, save_every, 1)
+        start = (np.array([q0]), np.array([0.0]), np.array([0.0]), 0.0, h, n_steps, save_every)
+        status = loop(*start, system.parameter_vector(None), *after, *out)
+        results.append((status, out))
+    (first, rows), (second, again) = results
+    assert first[0] != 0 and first[1] < n_steps  # the run does not get through
+    assert first == second
+    for a, b in zip(rows, again, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def _loop_name(integrator: gvi.Integrator) -> str:
     return integrator.run_spec.stage_steps.py_func.__name__
 
@@ -328,7 +377,6 @@ def test_small_systems_get_a_loop_written_for_the_method_and_large_ones_the_syst
 def test_each_method_is_a_cache_entry_of_its_own_and_its_key_follows_the_generator(
     monkeypatch,
 ):
-    from galerkin_vi.codegen import compiled
 
     system, q0, v0 = STAGE_CASES["henon_heiles"]
     first = gvi.Integrator(system, METHODS["gauss2"], specialize="system")
@@ -479,7 +527,6 @@ def test_the_key_of_a_module_with_a_stage_loop_follows_the_loops(monkeypatch):
     # the generated stage loop compiles in the shared loop's stopping rule: a new version
     # of the loops is a new module (and a recalled key is trusted only under the same
     # fingerprint, which hashes the loops' sources)
-    from galerkin_vi.codegen import compiled
     from galerkin_vi.codegen import spec as spec_module
 
     names = {path.name for path in compiled.fingerprint_sources()}

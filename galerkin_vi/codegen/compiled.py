@@ -216,9 +216,18 @@ class PointFunctions:
             key = hashlib.sha256(
                 f"{self.key}:{digest}:{generator_fingerprint()}".encode()
             ).hexdigest()
-            if read_entry(key) is None:
+            cached = read_entry(key) is not None
+            if not cached:
                 atomic_write(entry_path(key), render(key))
-            module = _import_entry(key, f"galerkin_vi_method_{key[:32]}")
+            name_of_module = f"galerkin_vi_method_{key[:32]}"
+            try:
+                module = _import_entry(key, name_of_module)
+            except (SyntaxError, ValueError):
+                if not cached:
+                    raise
+                # intact key lines, damaged in between: as in _load_module
+                atomic_write(entry_path(key), render(key))
+                module = _import_entry(key, name_of_module)
             from numba import njit
 
             from ..loops import cache_locators

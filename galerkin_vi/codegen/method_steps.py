@@ -9,9 +9,11 @@ the stage increments :math:`Z_i`, the forces :math:`F_j` and the control points
 are local scalars, and each table entry is a literal (its shortest round-trip
 decimal, so the same double). Products of a table entry with :math:`h` or
 :math:`h^2` are formed once per call. A term whose table entry is exactly zero is
-left out (:math:`x + 0\cdot F = x` for finite :math:`F`; the sign of a zero sum may
-differ); every other sum adds its terms in the shared loop's order, so states,
-sweeps and rows are the shared loop's.
+left out (:math:`x + 0\cdot F = x` for finite :math:`F`), and a sum the shared loop
+starts from ``0.0`` starts from its first term; every other sum adds its terms in the
+shared loop's order, so states, sweeps and rows are the shared loop's bit for bit, up
+to the sign of an exact zero (where the shared loop's sum gives ``0.0``, this one may
+give ``-0.0``).
 
 The iteration, per step :math:`k`, is that of :mod:`.stage_steps`:
 
@@ -296,10 +298,8 @@ def render_method_steps(
     for a in coords:
         terms = [(literal(b[j]), f"F_{j}_{a}") for j in range(r) if b[j] != 0.0]
         end.append(f"d_{a} = h * ({_sum(terms)})")
-    # one test of a sum: an inf or NaN in any term makes it fail, as the shared loop's
-    # test of each term does (which a sum past 1e300 of terms below it also fails here)
-    total = " + ".join(f"abs(C_{s - 1}_{a}) + abs(d_{a})" for a in coords)
-    end += [f"if not ({total}) < 1e300:", f"    status = {_STATUS_NONFINITE}"]
+    finite = " and ".join(f"abs(C_{s - 1}_{a}) < 1e300 and abs(d_{a}) < 1e300" for a in coords)
+    end += [f"if not ({finite}):", f"    status = {_STATUS_NONFINITE}"]
     step += indented(end, 1)
     step += [f"if status != {_STATUS_OK}:", *indented(kept, 1)]
     step += ["if residual > worst:", "    worst = residual"]

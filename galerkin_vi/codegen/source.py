@@ -504,7 +504,7 @@ def render_module(spec: KernelSpec, key: str) -> str:
         head.append("import numpy as np")
         gradient, hessian = functions[0][0][3:], functions[1][0][3:]
         force = [f"g_{a} = 0.0" for a in range(spec.n)] + at_rest(gradient, {"Lq": "g"})
-        steps = render_explicit_steps(
+        steps += render_explicit_steps(
             force, spec.n, spec.periodic, spec.diagonal_mass, spec.autonomous
         )
         if has_stage_steps(spec):

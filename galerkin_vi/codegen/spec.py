@@ -259,10 +259,10 @@ def kernel_spec(system: LagrangianSystem, repeats: bool = True) -> KernelSpec:
         diagonal_mass=system.structure.constant_mass
         and all(a == b for (a, b), e in full.Lvv.todok().items() if e != 0),
         repeats=groups,
+        # the whole L's L_v at rest, not the remainder's: a repeated a(t) . v is a group
         repeated_loop=bool(groups)
-        and has_generated_loops(system, p)
-        and not any(target.startswith("Lq[") for target, _ in gradient)
-        and all(array in ("q", "v", "prm") for g in groups for _, array in g.reads),
+        and has_generated_loops(system, system.pieces)
+        and not any(target.startswith("Lq[") for target, _ in gradient),
         **_constraint_entries(system, rename),
     )
 

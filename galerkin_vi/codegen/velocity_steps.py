@@ -16,9 +16,10 @@ the loops over the stages and coordinates are unrolled, the stage values
 :math:`Q_i, P_i, V_i, F_i` are local scalars, the velocity and force are the
 ``point_velocity`` function's own text at the stage's scalars (so the same rounding),
 and each table entry is a literal (its shortest round-trip decimal, so the same
-double). A term whose table entry is exactly zero is left out; every other sum adds
-its terms in the shared loop's order, so the states, sweeps and rows are the shared
-loop's. The hand-over rule (``contraction``, ``allowance``) stays an argument: a step
+double). A term whose table entry is exactly zero is left out and a sum starts from
+its first term, not ``0.0``; every other sum adds its terms in the shared loop's
+order, so the states, sweeps and rows are the shared loop's bit for bit, up to the
+sign of an exact zero. The hand-over rule (``contraction``, ``allowance``) stays an argument: a step
 the shared loop would not take ends the function with its status, and the run
 continues with Newton from the last row, as after the shared loop
 (:func:`galerkin_vi.run.segment.run_segment`).
@@ -208,8 +209,8 @@ def render_velocity_steps(text: dict, b, c, A, Abar, X) -> list[str]:  # noqa: N
     for a in coords:
         end.append(f"dq_{a} = h * ({combination(b, 'V', a)})")
         end.append(f"dp_{a} = h * ({combination(b, 'F', a)})")
-    finite = " + ".join(f"abs(dq_{a}) + abs(dp_{a})" for a in coords)
-    end += [f"if not ({finite}) < 1e300:", f"    status = {_STATUS_NONFINITE}"]
+    finite = " and ".join(f"abs(dq_{a}) < 1e300 and abs(dp_{a}) < 1e300" for a in coords)
+    end += [f"if not ({finite}):", f"    status = {_STATUS_NONFINITE}"]
     step += [f"if status == {_STATUS_OK}:", *indented(end, 1)]
     step += [
         f"if status == {_STATUS_OK}:",

@@ -85,8 +85,9 @@ def too_slow(increment, previous, its, contraction, budget, target):
     """
     if its < 2 or increment <= target:
         return False
-    # the rate's tests as products (previous > 0 here: a zero increment has converged);
-    # the division is left to the prediction, which fast contractions never reach
+    # the rate's tests as products, which answer as the division did for a previous
+    # increment of 0 too (a rate of inf); the division is left to the prediction, which
+    # fast contractions never reach
     if increment > contraction * previous:
         return True
     if increment <= 0.0:
