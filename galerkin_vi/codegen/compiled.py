@@ -219,15 +219,15 @@ class PointFunctions:
             cached = read_entry(key) is not None
             if not cached:
                 atomic_write(entry_path(key), render(key))
-            name_of_module = f"galerkin_vi_method_{key[:32]}"
+            module_name = f"galerkin_vi_method_{key[:32]}"
             try:
-                module = _import_entry(key, name_of_module)
+                module = _import_entry(key, module_name)
             except (SyntaxError, ValueError):
                 if not cached:
                     raise
                 # intact key lines, damaged in between: as in _load_module
                 atomic_write(entry_path(key), render(key))
-                module = _import_entry(key, name_of_module)
+                module = _import_entry(key, module_name)
             from numba import njit
 
             from ..loops import cache_locators

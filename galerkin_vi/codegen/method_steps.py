@@ -55,6 +55,7 @@ __all__ = [
     "has_method_steps",
     "kept_row_lines",
     "literal",
+    "weighted_sum",
     "loop_text_lines",
     "method_digest",
     "render_method_module",
@@ -133,7 +134,7 @@ def literal(x: float) -> str:
     return f"({text})" if text.startswith("-") else text
 
 
-def _sum(terms: list[tuple[str, str]], start: str | None = None) -> str:
+def weighted_sum(terms: list[tuple[str, str]], start: str | None = None) -> str:
     """``start + w1 * x1 + w2 * x2 + ...`` added left to right (the shared loop's
     order); ``"0.0"`` for no terms and no start."""
     parts = [] if start is None else [start]
@@ -228,13 +229,13 @@ def render_method_steps(
     for i in range(u):
         for a in coords:
             terms = [(weights[i, j], f"F_{j}_{a}") for j in known if (i, j) in weights]
-            step.append(f"o_{i}_{a} = {_sum(terms, f'hp_{i} * p_{a}')}")
+            step.append(f"o_{i}_{a} = {weighted_sum(terms, f'hp_{i} * p_{a}')}")
     first = []
     for i in range(u):
         for a in coords:
             terms = [(weights[i, implicit[m]], f"X_{m}_{a}") for m in range(u)
                      if (i, implicit[m]) in weights]  # fmt: skip
-            first.append(f"Z_{i}_{a} = ({_sum(terms, f'o_{i}_{a}')}) * w_{a}")
+            first.append(f"Z_{i}_{a} = ({weighted_sum(terms, f'o_{i}_{a}')}) * w_{a}")
     if first:
         step += ["if k > 0:", *indented(first, 1)]
     step += [
@@ -262,7 +263,7 @@ def render_method_steps(
             terms = [(weights[i, j], f"F_{j}_{a}") for j in implicit if (i, j) in weights]
             sweep += [
                 f"old = Z_{i}_{a}",
-                f"updated = ({_sum(terms, f'o_{i}_{a}')}) * w_{a}",
+                f"updated = ({weighted_sum(terms, f'o_{i}_{a}')}) * w_{a}",
                 "dz = abs(updated - old)",
                 "if dz > increment:",
                 "    increment = dz",
@@ -289,15 +290,15 @@ def render_method_steps(
         for a in coords:
             terms = [(literal(control_force[mu, j]), f"F_{j}_{a}") for j in range(r)
                      if control_force[mu, j] != 0.0]  # fmt: skip
-            end.append(f"C_{mu}_{a} = (hc_{mu} * p_{a} + h2 * ({_sum(terms)})) * w_{a}")
+            end.append(f"C_{mu}_{a} = (hc_{mu} * p_{a} + h2 * ({weighted_sum(terms)})) * w_{a}")
     for j in rest:
         for a in coords:
             terms = [(literal(Phi1[j, mu]), f"C_{mu}_{a}") for mu in range(s) if Phi1[j, mu] != 0.0]
-            end.append(f"Q_{a} = q_{a} + ({_sum(terms)})")
+            end.append(f"Q_{a} = q_{a} + ({weighted_sum(terms)})")
         end += forces_at(j, "Q", f"F_{j}")
     for a in coords:
         terms = [(literal(b[j]), f"F_{j}_{a}") for j in range(r) if b[j] != 0.0]
-        end.append(f"d_{a} = h * ({_sum(terms)})")
+        end.append(f"d_{a} = h * ({weighted_sum(terms)})")
     finite = " and ".join(f"abs(C_{s - 1}_{a}) < 1e300 and abs(d_{a}) < 1e300" for a in coords)
     end += [f"if not ({finite}):", f"    status = {_STATUS_NONFINITE}"]
     step += indented(end, 1)
@@ -307,7 +308,7 @@ def render_method_steps(
     for i in range(u):
         for a in coords:
             terms = [(literal(X[i, j]), f"F_{j}_{a}") for j in range(r) if X[i, j] != 0.0]
-            step.append(f"X_{i}_{a} = {_sum(terms)}")
+            step.append(f"X_{i}_{a} = {weighted_sum(terms)}")
     if reuse:
         step += [f"F_0_{a} = F_{r - 1}_{a}" for a in coords] + ["have_start_force = True"]
     step += compensated_lines("q", "l", f"C_{s - 1}", n)

@@ -30,7 +30,14 @@ from __future__ import annotations
 import numpy as np
 
 from .explicit_steps import compensated_lines, indented, initial_state_lines
-from .method_steps import METHOD_UNROLLED, RETURN_LINES, kept_row_lines, literal, step_end_lines
+from .method_steps import (
+    METHOD_UNROLLED,
+    RETURN_LINES,
+    kept_row_lines,
+    literal,
+    step_end_lines,
+    weighted_sum,
+)
 
 __all__ = [
     "VELOCITY_LOOP_TEXT",
@@ -58,10 +65,6 @@ def has_velocity_steps(n: int, tables) -> bool:
     """Whether a system of ``n`` coordinates gets a loop written for the method of
     ``tables`` (its stages times ``n`` at most :data:`.method_steps.METHOD_UNROLLED`)."""
     return len(tables.b) * n <= METHOD_UNROLLED
-
-
-def _sum(terms: list[tuple[str, str]]) -> str:
-    return " + ".join(f"{w} * {x}" for w, x in terms) if terms else "0.0"
 
 
 def velocity_text_lines(
@@ -129,9 +132,10 @@ def render_velocity_steps(text: dict, b, c, A, Abar, X) -> list[str]:  # noqa: N
         "for k in range(n_steps):",
     ]
     step = ["tk = t0 + k * h"]
+
     def combination(weights, values: str, a: int) -> str:
         """``sum_j weights[j] values_j_a`` over the nonzero weights, in order."""
-        return _sum([(literal(w), f"{values}_{j}_{a}") for j, w in enumerate(weights) if w])
+        return weighted_sum([(literal(w), f"{values}_{j}_{a}") for j, w in enumerate(weights) if w])
 
     extrapolate = []
     for i in stages:
