@@ -26,6 +26,8 @@ import sympy as sp
 
 from ..printer import KernelPrinter
 from .explicit_steps import render_explicit_steps
+from .lanes import IMPORT as LANES_IMPORT
+from .lanes import lane_lines, lifted_statements
 from .method_steps import METHOD_UNROLLED, loop_text_lines
 from .repeats import Run, find_runs
 from .scatter import ScatterGroup
@@ -55,6 +57,7 @@ POINT_CHUNK = 200
 # Python's parser nests a + b + c + ... one level per operator: long sums are
 # accumulated in chunks (a Lagrangian of 1000 springs otherwise fails to compile)
 _SUM_CHUNK = 32
+_IDENTIFIER = re.compile(r"\b[A-Za-z_]\w*\b")
 
 
 def _assignment(
@@ -234,10 +237,36 @@ def _group_code(group: ScatterGroup) -> tuple[list[str], list[str], str]:
     return lines, adds, printer.doprint(reduced[0])
 
 
+def _group_statements(group: ScatterGroup, columns: list[int]) -> tuple[list, list[str]]:
+    """The statements of one instance of ``group`` that the entries ``columns`` need,
+    square roots and divisions lifted (:func:`.lanes.lifted_statements`), and the
+    names of the entries' values (``{group}_a{e}``)."""
+    temporaries, adds, _ = _group_code(group)
+    pairs = [tuple(line.strip().split(" = ", 1)) for line in temporaries]
+    targets = [f"{group.name}_a{e}" for e in columns]
+    needed: set[str] = set()
+    for e in columns:
+        needed |= set(_IDENTIFIER.findall(adds[e]))
+    kept = []
+    for name, expression in reversed(pairs):
+        if name in needed:
+            needed |= set(_IDENTIFIER.findall(expression))
+            kept.append((name, expression))
+    assignments = kept[::-1] + [(t, adds[e]) for t, e in zip(targets, columns, strict=True)]
+    return lifted_statements(assignments, f"{group.name}_l"), targets
+
+
+def _local_names(group: ScatterGroup, statements: list) -> frozenset[str]:
+    return frozenset([var for var, _ in group.reads] + [s.target for s in statements])
+
+
 def _scatter_loop(group: ScatterGroup, columns: list[int], value: bool) -> list[str]:
     r"""Source lines of one group's loop: read the arguments, add the derivatives.
 
     ``value``: add the template itself into ``_total`` (the Lagrangian) instead.
+    Instances run one at a time: written side by side (:mod:`.lanes`), a loop's
+    body is four times as long and compiles several times slower
+    (docs/performance.md), which a large system's build cannot afford.
     """
     temporaries, adds, total = _group_code(group)
     lines = [f"    for _k in range({group.count}):"]
@@ -257,24 +286,31 @@ def repeated_force_lines(spec: KernelSpec) -> list[str]:
     r"""Lines setting ``g_a`` to :math:`L_q` at the scalars ``q_a``, at :math:`v = 0`,
     for a system whose :math:`L_q` is its repeated terms alone (``spec.repeated_loop``).
 
-    Each group's scatter loop unrolled: per instance, in table order, its arguments read
-    as scalars, the template's temporaries, and the adds into the coordinates its
-    slots name, so that every entry is the same sum in the same order as the point
-    gradient's scatter loops compute it, bit for bit.
+    Each group's scatter loop unrolled: every instance's arguments read as scalars,
+    the template's statements written for all instances side by side (square roots
+    and divisions :data:`.lanes.LANES` at a time, :mod:`.lanes`), then per instance,
+    in table order, the adds into the coordinates its slots name, so that every
+    entry is the same sum in the same order as the point gradient's scatter loops
+    compute it, bit for bit.
     """
     lines = [f"g_{a} = 0.0" for a in range(spec.n)]
     for group in spec.repeats:
         columns = [e for e, (array, _) in enumerate(group.entries) if array == "Lq"]
         if not columns:
             continue
-        temporaries, adds, _ = _group_code(group)
-        for k in range(group.count):
+        statements, targets = _group_statements(group, columns)
+        suffixes = [f"_k{k}" for k in range(group.count)]
+        for k, suffix in enumerate(suffixes):
             for i, (var, array) in enumerate(group.reads):
                 index = int(group.table[k, i])
                 read = {"q": f"q_{index}", "v": "0.0"}.get(array, f"{array}[{index}]")
-                lines.append(f"{var} = {read}")
-            lines += [line.strip() for line in temporaries]
-            lines += [f"g_{int(group.slots[k, e])} += {adds[e]}" for e in columns]
+                lines.append(f"{var}{suffix} = {read}")
+        lines += lane_lines(statements, _local_names(group, statements), suffixes)
+        for k, suffix in enumerate(suffixes):
+            lines += [
+                f"g_{int(group.slots[k, e])} += {target}{suffix}"
+                for e, target in zip(columns, targets, strict=True)
+            ]
     return lines
 
 
@@ -483,8 +519,9 @@ def render_module(spec: KernelSpec, key: str) -> str:
         functions.append(_point_function("point_velocity", list(spec.velocity_entries), large))
     steps = []
     if spec.repeated_loop:
-        # the explicit loop with the repeated terms' force unrolled (specialize="system")
-        head.append("import numpy as np")
+        # the explicit loop with the repeated terms' force unrolled (specialize="system"),
+        # their square roots and divisions four instances at a time
+        head += ["import numpy as np", LANES_IMPORT]
         steps += render_explicit_steps(
             repeated_force_lines(spec), spec.n, spec.periodic, spec.diagonal_mass,
             spec.autonomous, name="repeated_explicit_steps",

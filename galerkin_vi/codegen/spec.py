@@ -47,7 +47,7 @@ __all__ = [
     "use_banded",
 ]
 
-GENERATOR_VERSION = "17"
+GENERATOR_VERSION = "18"
 
 #: the fewest instances of a term that become a scatter loop (:mod:`.scatter`)
 MIN_REPEATS = 8
