@@ -66,10 +66,12 @@ class Integrator:
         ``"varying_mass"`` sweep as a loop generated for the system and method
         (:mod:`galerkin_vi.codegen.velocity_steps`; 1.6–3.2 s, 0.63–0.73 of the
         time), and with a force that is a pair potential alone (repeated terms, at
-        most 24 coordinates) the explicit path as a loop with the pairs unrolled
-        (about 3 s, 0.9 of the time). With either true value the explicit path
-        (compositions, Störmer–Verlet) of a system without repeated terms runs the
-        loop generated for the system, which compiles in a fraction of a second;
+        most 24 coordinates) the explicit path as a loop with the pairs unrolled,
+        their square roots and divisions four pairs at a time
+        (:mod:`galerkin_vi.codegen.lanes`; about 3 s, 0.6 of the time). With either
+        true value the explicit path (compositions, Störmer–Verlet) of a system
+        without repeated terms runs the loop generated for the system, which
+        compiles in a fraction of a second;
         ``False`` keeps the shared loops (compositions still take the explicit path).
         Every generated loop takes the shared loop's steps bit for bit (up to the sign
         of an exact zero).
