@@ -68,6 +68,13 @@ class _Lift(ast.NodeTransformer):
         self.seen = seen
         self.prefix = prefix
 
+    def visit_IfExp(self, node: ast.IfExp) -> ast.AST:
+        # a branch not taken is not evaluated: what it divides may be zero there
+        return node
+
+    def visit_BoolOp(self, node: ast.BoolOp) -> ast.AST:
+        return node
+
     def visit_Call(self, node: ast.Call) -> ast.AST:
         self.generic_visit(node)
         return self._lift("sqrt", node.args) if _is_sqrt(node) else node
@@ -94,7 +101,10 @@ def lifted_statements(
     as a statement of its own (new names ``prefix0``, ``prefix1``, ...), in an order
     that computes every name before its use.
 
-    A division of two constants (``1/2``) stays: Python folds it.
+    A division of two constants (``1/2``) stays: Python folds it. Nothing inside a
+    conditional expression or a boolean operation is lifted (a lifted statement is
+    always evaluated). Each target is assigned once: a sum written in chunks
+    (``x = a``, ``x += b``) is passed as one assignment ``x = (a) + (b)``.
     """
     statements: list[Statement] = []
     seen: dict = {}
@@ -103,7 +113,9 @@ def lifted_statements(
         tree = lift.visit(ast.parse(expression, mode="eval"))
         body = tree.body
         if isinstance(body, ast.Name) and body.id.startswith(prefix) and statements:
-            # the whole expression was lifted: name its statement after the target
+            # the whole expression was lifted: name its statement after the target. Each
+            # assignment ends with a statement of its own, so a last statement with the
+            # prefix is this expression's outermost lift
             last = statements[-1]
             if last.target == body.id:
                 statements[-1] = Statement(target, last.kind, last.operands)

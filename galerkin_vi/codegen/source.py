@@ -242,7 +242,14 @@ def _group_statements(group: ScatterGroup, columns: list[int]) -> tuple[list, li
     square roots and divisions lifted (:func:`.lanes.lifted_statements`), and the
     names of the entries' values (``{group}_a{e}``)."""
     temporaries, adds, _ = _group_code(group)
-    pairs = [tuple(line.strip().split(" = ", 1)) for line in temporaries]
+    pairs: list[tuple[str, str]] = []
+    for line in temporaries:
+        target, op, expression = line.split(maxsplit=2)
+        if op == "+=":
+            # a long sum written in chunks (_assignment): one assignment, the same order
+            pairs[-1] = (target, f"({pairs[-1][1]}) + ({expression})")
+        else:
+            pairs.append((target, expression))
     targets = [f"{group.name}_a{e}" for e in columns]
     needed: set[str] = set()
     for e in columns:
@@ -519,8 +526,9 @@ def render_module(spec: KernelSpec, key: str) -> str:
         functions.append(_point_function("point_velocity", list(spec.velocity_entries), large))
     steps = []
     if spec.repeated_loop:
-        # the explicit loop with the repeated terms' force unrolled (specialize="system"),
-        # their square roots and divisions four instances at a time
+        # the explicit loop with the repeated terms' force unrolled (specialize="system");
+        # the roots and quotients of its pairs bound a small pair force, and numba
+        # vectorises none of them on its own
         head += ["import numpy as np", LANES_IMPORT]
         steps += render_explicit_steps(
             repeated_force_lines(spec), spec.n, spec.periodic, spec.diagonal_mass,

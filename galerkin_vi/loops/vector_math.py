@@ -13,7 +13,9 @@ intrinsics, which place four operands in one ``<4 x double>`` register and emit
 IEEE 754 rounds a square root and a quotient correctly in every lane, so each
 result is the scalar ``math.sqrt(x)`` and ``a / b`` bit for bit (no fast-math
 flag is set). On a machine without 256-bit registers LLVM splits the operation
-into narrower ones, with the same results.
+into narrower ones, with the same results. The generated modules' cache keys hash
+this file (:func:`galerkin_vi.codegen.compiled.fingerprint_sources`), so that a change
+here compiles them afresh.
 """
 
 from __future__ import annotations
@@ -34,8 +36,9 @@ _DOUBLES = ir.VectorType(ir.DoubleType(), LANES)
 
 def _typed(name: str, operands: tuple) -> types.UniTuple:
     for operand in operands:
-        if not isinstance(operand, (types.Float, types.Integer, types.Boolean)):
-            raise TypingError(f"{name} takes real numbers, not {operand}")
+        # float32 would be rounded as a double here but as a float32 by the scalar code
+        if operand != types.float64 and not isinstance(operand, (types.Integer, types.Boolean)):
+            raise TypingError(f"{name} takes float64, integers or booleans, not {operand}")
     return types.UniTuple(types.float64, LANES)(*operands)
 
 
@@ -59,11 +62,11 @@ def _sqrt4(typingctx, x0, x1, x2, x3):
 
     def codegen(context, builder, signature, args):
         packed = _packed(context, builder, args, signature.args)
-        module = builder.module
-        name = "llvm.sqrt.v4f64"
-        function = module.globals.get(name) or ir.Function(
-            module, ir.FunctionType(_DOUBLES, [_DOUBLES]), name
-        )
+        # llvmlite's declare_intrinsic names no vector types: declared by its full name
+        module, name = builder.module, "llvm.sqrt.v4f64"
+        function = module.globals.get(name)
+        if function is None:
+            function = ir.Function(module, ir.FunctionType(_DOUBLES, [_DOUBLES]), name)
         return _unpacked(context, builder, signature, builder.call(function, [packed]))
 
     return signature, codegen
