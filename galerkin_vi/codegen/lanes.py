@@ -21,7 +21,7 @@ import ast
 import re
 from dataclasses import dataclass
 
-__all__ = ["IMPORT", "LANES", "Statement", "has_lanes", "lane_lines", "lifted_statements"]
+__all__ = ["IDENTIFIER", "IMPORT", "LANES", "Statement", "lane_lines", "lifted_statements"]
 
 #: instances per call of the intrinsics (:data:`galerkin_vi.loops.vector_math.LANES`)
 LANES = 4
@@ -29,7 +29,8 @@ LANES = 4
 #: the import a module using :func:`lane_lines` needs
 IMPORT = "from galerkin_vi.loops.vector_math import divide4, sqrt4"
 
-_IDENTIFIER = re.compile(r"\b[A-Za-z_]\w*\b")
+#: a Python name in generated text
+IDENTIFIER = re.compile(r"\b[A-Za-z_]\w*\b")
 
 
 @dataclass(frozen=True)
@@ -127,14 +128,9 @@ def lifted_statements(
     return statements
 
 
-def has_lanes(statements: list[Statement]) -> bool:
-    """Whether any statement is a square root or a division."""
-    return any(s.kind != "scalar" for s in statements)
-
-
 def _renamed(text: str, names: frozenset[str], suffix: str) -> str:
     """``text`` with ``suffix`` appended to each of ``names``."""
-    return _IDENTIFIER.sub(lambda m: m.group(0) + (suffix if m.group(0) in names else ""), text)
+    return IDENTIFIER.sub(lambda m: m.group(0) + (suffix if m.group(0) in names else ""), text)
 
 
 def _call_line(statement: Statement, names: frozenset[str], suffixes: list[str]) -> str:

@@ -26,8 +26,8 @@ import sympy as sp
 
 from ..printer import KernelPrinter
 from .explicit_steps import render_explicit_steps
+from .lanes import IDENTIFIER, lane_lines, lifted_statements
 from .lanes import IMPORT as LANES_IMPORT
-from .lanes import lane_lines, lifted_statements
 from .method_steps import METHOD_UNROLLED, loop_text_lines
 from .repeats import Run, find_runs
 from .scatter import ScatterGroup
@@ -57,7 +57,6 @@ POINT_CHUNK = 200
 # Python's parser nests a + b + c + ... one level per operator: long sums are
 # accumulated in chunks (a Lagrangian of 1000 springs otherwise fails to compile)
 _SUM_CHUNK = 32
-_IDENTIFIER = re.compile(r"\b[A-Za-z_]\w*\b")
 
 
 def _assignment(
@@ -253,11 +252,11 @@ def _group_statements(group: ScatterGroup, columns: list[int]) -> tuple[list, li
     targets = [f"{group.name}_a{e}" for e in columns]
     needed: set[str] = set()
     for e in columns:
-        needed |= set(_IDENTIFIER.findall(adds[e]))
+        needed |= set(IDENTIFIER.findall(adds[e]))
     kept = []
     for name, expression in reversed(pairs):
         if name in needed:
-            needed |= set(_IDENTIFIER.findall(expression))
+            needed |= set(IDENTIFIER.findall(expression))
             kept.append((name, expression))
     assignments = kept[::-1] + [(t, adds[e]) for t, e in zip(targets, columns, strict=True)]
     return lifted_statements(assignments, f"{group.name}_l"), targets
