@@ -13,7 +13,10 @@ The hand-written side is the faster of the fixed-point kernel of
 kernel of ``peers/scalar.py`` written for that one method and problem (Gauss(2)
 on the pendulum and Kepler: no arrays, no loops over stages or coordinates);
 the column ``hw kernel`` says which. Both sides run in this process,
-interleaved, best of ``--repeats``: only the ratios compare across machines.
+interleaved in alternating order: ``ratio`` is that of the best of ``--repeats``
+runs each, ``paired ratio`` the median and quartiles of the ratios of the runs of
+one repeat (a slow phase of a shared machine falls on both of a pair); only the
+ratios compare across machines.
 
 Usage::
 
@@ -26,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from collections.abc import Sequence
@@ -99,25 +101,47 @@ def row(
             return strong.run_nystrom(case.problem_id, tables, case.q0, p0, h, n, n, case.hw_params)
 
     kernels = {"fixed-point": hw_run}
+    if case.separable:
+        # the first iterate from the last two steps' forces, as galerkin_vi's stage form
+
+        def hw_two_step_run(n):
+            return strong.run_nystrom(
+                case.problem_id, tables, case.q0, p0, h, n, n, case.hw_params, two_step=True
+            )
+
+        kernels["fixed-point 2-step"] = hw_two_step_run
     if (case.name, label) in scalar.SCALAR_KERNELS:
 
         def scalar_run(n):
             return scalar.run_scalar(case.name, label, case.q0, p0, h, n, n)
 
         kernels["scalar"] = scalar_run
+
+        def scalar_two_step_run(n):
+            return scalar.run_scalar(case.name, label, case.q0, p0, h, n, n, two_step=True)
+
+        kernels["scalar 2-step"] = scalar_two_step_run
     gvi_run(10)
     for run in kernels.values():
         run(10)
     probe = 500
     n = int(min(1_000_000, max(500, probe * seconds / max(_clock(lambda: gvi_run(probe)), 1e-9))))
-    t_gvi = math.inf
-    t_kernels = dict.fromkeys(kernels, math.inf)
-    for _ in range(repeats):
-        t_gvi = min(t_gvi, _clock(lambda: gvi_run(n)))
-        for name, run in kernels.items():
-            t_kernels[name] = min(t_kernels[name], _clock(lambda run=run: run(n)))
+    # the runs interleaved, in alternating order, so that a slow phase of a shared
+    # machine falls on both sides; the paired ratios (one per repeat) give the spread
+    runs = {
+        "gvi": lambda: gvi_run(n),
+        **{name: (lambda run=run: run(n)) for name, run in kernels.items()},
+    }
+    times: dict[str, list[float]] = {name: [] for name in runs}
+    for repeat in range(repeats):
+        order = list(runs) if repeat % 2 == 0 else list(runs)[::-1]
+        for name in order:
+            times[name].append(_clock(runs[name]))
+    t_gvi = min(times["gvi"])
+    t_kernels = {name: min(times[name]) for name in kernels}
     strongest = min(t_kernels, key=t_kernels.get)
     t_hw = t_kernels[strongest]
+    paired = np.array(times["gvi"]) / np.array(times[strongest])
     a, b = gvi_run(n), kernels[strongest](n)
     scale = 1.0 + float(np.max(np.abs(b.q[-1])))
     return {
@@ -128,6 +152,7 @@ def row(
         "gvi_ns": 1e9 * t_gvi / n,
         "hw_ns": 1e9 * t_hw / n,
         "ratio": t_gvi / t_hw,
+        "paired_ratio": [float(x) for x in np.quantile(paired, [0.25, 0.5, 0.75])],
         "gvi_iterations": a.mean_newton_iterations,
         "hw_sweeps": b.mean_sweeps,
         "final_q_difference": float(np.max(np.abs(a.q[-1] - b.q[-1]))) / scale,
@@ -162,7 +187,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     specialize = True if args.specialize == "true" else "system"
     header = (
         f"{'problem':20s} {'method':11s} {'loop':10s} {'gvi ns':>9s} {'hw ns':>9s} {'ratio':>6s}"
-        f" {'gvi its':>8s} {'hw sweeps':>9s} {'final dq':>9s} {'hw kernel':>11s}"
+        f" {'gvi its':>8s} {'hw sweeps':>9s} {'final dq':>9s} {'hw kernel':>18s}"
+        f" {'paired ratio: median [quartiles]':>33s}"
     )
     print(header)
     print("-" * len(header))
@@ -179,7 +205,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(
                 f"{name:20s} {label:11s} {r['loop']:10s} {r['gvi_ns']:9.1f} {r['hw_ns']:9.1f}"
                 f" {r['ratio']:6.2f} {r['gvi_iterations']:8.2f} {r['hw_sweeps']:9.2f}"
-                f" {r['final_q_difference']:9.1e} {r['kernel']:>11s}",
+                f" {r['final_q_difference']:9.1e} {r['kernel']:>18s}"
+                "    {1:.3f} [{0:.3f}, {2:.3f}]".format(*r["paired_ratio"]),
                 flush=True,
             )
     if args.json:

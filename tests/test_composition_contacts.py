@@ -108,6 +108,10 @@ def test_t_eval_rows_are_the_closed_form_across_impacts(name):
     traj = _run(name, t_eval=times)
     np.testing.assert_array_equal(traj.t, times)
     q_exact, v_exact = exact(times)
+    # at a hit the closed form after the impact: the located time may lie an ulp before
+    # the closed-form one, where the closed form is still before the impact
+    at_hit = np.isin(times, hits)
+    v_exact[at_hit] = exact(times[at_hit] + 1e-12)[1]
     np.testing.assert_allclose(traj.q[:, 0], q_exact, rtol=0, atol=tol)
     # p = v for these Lagrangians: the post-impact velocity at the impacts
     np.testing.assert_allclose(traj.p[:, 0], v_exact, rtol=0, atol=10 * tol)

@@ -519,7 +519,8 @@ def test_convergence_error_mid_run_keeps_the_partial_trajectory(blow_up, backend
 
 def test_convergence_error_same_step_in_both_backends(blow_up):
     # the compiled loop iterates by fixed point (constant mass) where the reference
-    # runs Newton: near the blow-up their domains of convergence differ by one step
+    # runs Newton: near the blow-up their domains of convergence differ by a step or two
+    # (the fixed point's, from forces extrapolated over two steps, reaches further)
     errors = []
     for backend in BACKENDS:
         integrator = gvi.Integrator(
@@ -529,7 +530,7 @@ def test_convergence_error_same_step_in_both_backends(blow_up):
             integrator.integrate([1.0], [0.0], h=0.02, n_steps=1000, on_failure="raise")
         errors.append(info.value)
     steps = [e.step for e in errors]
-    assert abs(steps[0] - steps[1]) <= 1  # measured 46 (reference) and 47 (compiled)
+    assert abs(steps[0] - steps[1]) <= 2  # measured 46 (reference) and 48 (compiled)
     common = min(steps)
     np.testing.assert_allclose(
         errors[0].partial.q[:common], errors[1].partial.q[:common], rtol=1e-10

@@ -68,11 +68,36 @@ def test_force_extrapolation_is_exact_for_polynomials_of_degree_r_minus_1(method
     # (r quadrature points) are continued into the next step exactly
     tables = separable_tables(method)
     c = method.tables.c
-    X = tables.force_extrapolation
-    assert X.shape == (tables.implicit.size, c.size)
+    X = tables.force_extrapolation[:, : c.size]
+    assert tables.force_extrapolation.shape == (tables.implicit.size, 3 * c.size)
     ahead = 1.0 + c[tables.implicit]
     for degree in range(c.size):
         np.testing.assert_allclose(X @ c**degree, ahead**degree, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("method", METHODS, ids=str)
+def test_two_step_force_extrapolation_is_exact_to_one_below_its_number_of_nodes(method):
+    # from the nodes c - 1 and c of the last two steps (a node they share, Lobatto's end,
+    # once): exact for polynomials of degree below the number of distinct nodes, 2r or
+    # 2r - 1, and zero weight on the older copy of a shared node
+    tables = separable_tables(method)
+    c = method.tables.c
+    r = c.size
+    Y = tables.force_extrapolation[:, r:]
+    nodes = np.concatenate([c - 1, c])
+    shared = np.isclose(c - 1, c[:, None], atol=1e-14).any(axis=0)
+    assert np.all(Y[:, :r][:, shared] == 0.0)
+    distinct = 2 * r - int(shared.sum())
+    ahead = 1.0 + c[tables.implicit]
+    for degree in range(distinct):
+        # the weights grow with the degree: relative to the sum of their sizes
+        size = np.abs(Y) @ np.abs(nodes) ** degree
+        np.testing.assert_array_less(
+            np.abs(Y @ nodes**degree - ahead**degree), 1e-13 * size + 1e-13
+        )
+    # one degree more is not exact: the basis has no more nodes
+    top = np.abs(Y @ nodes**distinct - ahead**distinct)
+    assert top.max() > 1e-8
 
 
 @pytest.mark.parametrize(

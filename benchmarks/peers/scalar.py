@@ -7,7 +7,10 @@ for one method and one problem, with no loop over stages or coordinates, no
 array indexing and no problem dispatch. The iteration policy is
 :mod:`.strong`'s (extrapolated stage forces, stop when a sweep leaves the stage
 positions bit-identical or stops improving below 1e-10, compensated sums), so
-the steps and sweeps are the same as there and as galerkin_vi's.
+the steps and sweeps are the same as there. With ``two_step`` the first iterate
+of every step from the third on comes from the stage forces of the last two
+steps (the Lagrange basis on their four nodes), as galerkin_vi's stage-form
+loops start: the same sweeps as galerkin_vi's again.
 
 These kernels set the per-step bar of the same-method table in the regime of
 small steps, where one sweep converges and a step's fixed costs (everything but
@@ -19,9 +22,11 @@ from __future__ import annotations
 
 import math
 
+import mpmath
 import numba as nb
 import numpy as np
 
+from .handwritten import _lagrange
 from .strong import StrongRun, gauss_fixed_point_tables
 
 __all__ = ["SCALAR_KERNELS", "run_scalar"]
@@ -37,21 +42,31 @@ def _add(x, lost, dx):
 @nb.njit(cache=True)
 def pendulum_gauss2(q0, v0, h, n_steps, save_every, T, maxiter, q_out, v_out, sweeps):
     """Gauss(2) on the pendulum; ``T`` = (A11, A12, A21, A22, bb1, bb2, b1, b2, c1, c2,
-    X11, X12, X21, X22) of :func:`.strong.gauss_fixed_point_tables`. Returns (status,
-    steps done, rows saved)."""
+    X11, X12, X21, X22, two_step, Y11, .., Y14, Y21, .., Y24) of :func:`_flat_tables`
+    (``two_step`` 1.0: the first iterate from the forces of the last two steps, the
+    ``Y`` weights, from the third step on). Returns (status, steps done, rows saved)."""
     A11, A12, A21, A22 = T[0], T[1], T[2], T[3]
     bb1, bb2, b1, b2, c1, c2 = T[4], T[5], T[6], T[7], T[8], T[9]
     X11, X12, X21, X22 = T[10], T[11], T[12], T[13]
+    two_step = T[14] != 0.0
+    Y11, Y12, Y13, Y14, Y21, Y22, Y23, Y24 = T[15], T[16], T[17], T[18], T[19], T[20], T[21], T[22]
     q, v = q0[0], v0[0]
     ql = vl = 0.0
     g1 = g2 = math.sin(q)
+    o1 = o2 = 0.0  # the forces of the step before the last
     Q1 = Q2 = 0.0
     h2 = h * h
     q_out[0, 0], v_out[0, 0] = q, v
     saved = 1
     for k in range(n_steps):
-        if k > 0:
-            g1, g2 = X11 * g1 + X12 * g2, X21 * g1 + X22 * g2
+        if k > 1 and two_step:
+            o1, o2, g1, g2 = (
+                g1, g2,
+                Y11 * o1 + Y12 * o2 + Y13 * g1 + Y14 * g2,
+                Y21 * o1 + Y22 * o2 + Y23 * g1 + Y24 * g2,
+            )  # fmt: skip
+        elif k > 0:
+            o1, o2, g1, g2 = g1, g2, X11 * g1 + X12 * g2, X21 * g1 + X22 * g2
         it = 0
         previous = np.inf
         while True:
@@ -88,18 +103,32 @@ def kepler_gauss2(q0, v0, h, n_steps, save_every, T, maxiter, q_out, v_out, swee
     A11, A12, A21, A22 = T[0], T[1], T[2], T[3]
     bb1, bb2, b1, b2, c1, c2 = T[4], T[5], T[6], T[7], T[8], T[9]
     X11, X12, X21, X22 = T[10], T[11], T[12], T[13]
+    two_step = T[14] != 0.0
+    Y11, Y12, Y13, Y14, Y21, Y22, Y23, Y24 = T[15], T[16], T[17], T[18], T[19], T[20], T[21], T[22]
     x, y, u, w = q0[0], q0[1], v0[0], v0[1]
     xl = yl = ul = wl = 0.0
     gx1, gy1 = _kepler_force(x, y)
     gx2, gy2 = gx1, gy1
+    ox1 = oy1 = ox2 = oy2 = 0.0  # the forces of the step before the last
     X1 = Y1 = X2 = Y2 = 0.0
     h2 = h * h
     q_out[0, 0], q_out[0, 1], v_out[0, 0], v_out[0, 1] = x, y, u, w
     saved = 1
     for k in range(n_steps):
-        if k > 0:
-            gx1, gx2 = X11 * gx1 + X12 * gx2, X21 * gx1 + X22 * gx2
-            gy1, gy2 = X11 * gy1 + X12 * gy2, X21 * gy1 + X22 * gy2
+        if k > 1 and two_step:
+            ox1, ox2, gx1, gx2 = (
+                gx1, gx2,
+                Y11 * ox1 + Y12 * ox2 + Y13 * gx1 + Y14 * gx2,
+                Y21 * ox1 + Y22 * ox2 + Y23 * gx1 + Y24 * gx2,
+            )  # fmt: skip
+            oy1, oy2, gy1, gy2 = (
+                gy1, gy2,
+                Y11 * oy1 + Y12 * oy2 + Y13 * gy1 + Y14 * gy2,
+                Y21 * oy1 + Y22 * oy2 + Y23 * gy1 + Y24 * gy2,
+            )  # fmt: skip
+        elif k > 0:
+            ox1, ox2, gx1, gx2 = gx1, gx2, X11 * gx1 + X12 * gx2, X21 * gx1 + X22 * gx2
+            oy1, oy2, gy1, gy2 = gy1, gy2, X11 * gy1 + X12 * gy2, X21 * gy1 + X22 * gy2
         it = 0
         previous = np.inf
         while True:
@@ -132,14 +161,31 @@ def kepler_gauss2(q0, v0, h, n_steps, save_every, T, maxiter, q_out, v_out, swee
 SCALAR_KERNELS = {("pendulum", "Gauss(2)"): pendulum_gauss2, ("kepler", "Gauss(2)"): kepler_gauss2}
 
 
-def _flat_tables() -> np.ndarray:
+def two_step_weights(c) -> np.ndarray:
+    """The Lagrange basis on the nodes of the last two steps, ``c - 1`` and ``c``, at the
+    next step's nodes ``1 + c_i``: shape (r, 2 r), the older step's weights first."""
+    with mpmath.workdps(50):
+        nodes = [mpmath.mpf(x) - 1 for x in c] + [mpmath.mpf(x) for x in c]
+        return np.array([[float(w) for w in _lagrange(nodes, 1 + mpmath.mpf(x))] for x in c])
+
+
+def _flat_tables(two_step: bool = False) -> np.ndarray:
     t = gauss_fixed_point_tables(2)
-    return np.array([*t.Abar.ravel(), *t.bbar, *t.b, *t.c, *t.X.ravel()])
+    # the nodes from strong's exact tables: c rounded once is all the weights need here
+    Y = two_step_weights(_gauss2_nodes())
+    return np.array(
+        [*t.Abar.ravel(), *t.bbar, *t.b, *t.c, *t.X.ravel(), float(two_step), *Y.ravel()]
+    )
+
+
+def _gauss2_nodes() -> list:
+    with mpmath.workdps(50):
+        return [mpmath.mpf(1) / 2 - mpmath.sqrt(3) / 6, mpmath.mpf(1) / 2 + mpmath.sqrt(3) / 6]
 
 
 def run_scalar(
     problem: str, method: str, q0, p0, h: float, n_steps: int, save_every: int = 1,
-    maxiter: int = 100,
+    maxiter: int = 100, two_step: bool = False,
 ) -> StrongRun:  # fmt: skip
     """The scalar kernel of (problem, method) from (q0, p0) (unit masses: p = v)."""
     kernel = SCALAR_KERNELS[(problem, method)]
@@ -149,7 +195,7 @@ def run_scalar(
     q_out, v_out = np.empty((rows, q0.size)), np.empty((rows, q0.size))
     sweeps = np.zeros(n_steps, dtype=np.int64)
     status, done, saved = kernel(
-        q0, v0, float(h), int(n_steps), int(save_every), _flat_tables(), int(maxiter),
+        q0, v0, float(h), int(n_steps), int(save_every), _flat_tables(two_step), int(maxiter),
         q_out, v_out, sweeps,
     )  # fmt: skip
     if status != 0:

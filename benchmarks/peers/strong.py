@@ -77,7 +77,9 @@ class FixedPointTables:
     ``Abar`` (stage positions; for :func:`irk_fixed_point` the Runge–Kutta ``A``),
     ``bbar = b (1 - c)`` (the position update), ``b``, ``c``, ``X[i, j] =
     l_j(1 + c_i)`` (the previous step's stage forces extrapolated to this step's
-    nodes), ``lobatto`` (first stage q_k, last stage q_{k+1}).
+    nodes), ``lobatto`` (first stage q_k, last stage q_{k+1}), ``Y`` (r, 2 r): the
+    stage forces of the last two steps extrapolated (their nodes ``c - 1`` and ``c``;
+    a repeated node, Lobatto's end, once).
     """
 
     Abar: NDArray[np.float64]
@@ -86,11 +88,26 @@ class FixedPointTables:
     c: NDArray[np.float64]
     X: NDArray[np.float64]
     lobatto: bool
+    Y: NDArray[np.float64]
+
+
+def _two_step(c, x) -> list:
+    """The Lagrange basis on the nodes of the last two steps, ``c - 1`` (less those that
+    are also nodes ``c``: Lobatto's end) and ``c``, at ``x``: the older step's weights
+    first, 0 for a node left out."""
+    older = [cj - 1 for cj in c]
+    kept = [j for j, node in enumerate(older) if all(abs(node - cm) > 1e-30 for cm in c)]
+    values = hw._lagrange([older[j] for j in kept] + list(c), x)
+    weights = [mpmath.mpf(0)] * len(c)
+    for place, j in enumerate(kept):
+        weights[j] = values[place]
+    return weights + values[len(kept) :]
 
 
 def _tables(c, A, Abar, b, lobatto: bool) -> FixedPointTables:
     r = len(c)
     X = [hw._lagrange(c, 1 + ci) for ci in c]
+    Y = [_two_step(c, 1 + ci) for ci in c]
     bbar = [b[j] * (1 - c[j]) for j in range(r)]
 
     def rnd(x):
@@ -100,7 +117,7 @@ def _tables(c, A, Abar, b, lobatto: bool) -> FixedPointTables:
     if lobatto:
         out[0, :] = 0.0
         out[:, -1] = 0.0  # exactly zero in exact arithmetic
-    return FixedPointTables(rnd(out), rnd(bbar), rnd(b), rnd(c), rnd(X), lobatto)
+    return FixedPointTables(rnd(out), rnd(bbar), rnd(b), rnd(c), rnd(X), lobatto, rnd(Y))
 
 
 @cache
@@ -139,12 +156,13 @@ def _two_sum_add(x, lost, dx):
 @nb.njit(cache=True)
 def nystrom_fixed_point(
     problem, prm, q0, v0, h, n_steps, save_every, Abar, bbar, b, c, X, lobatto, maxiter,
-    q_out, v_out, sweeps,
+    q_out, v_out, sweeps, Y, two_step,
 ):  # fmt: skip
     """Fixed-point Nyström step (Gauss or Lobatto IIIA–IIIB tables) from (q0, v0).
 
-    Saves rows at k % save_every == 0 and the last step. Returns (status, steps
-    done, rows saved).
+    Saves rows at k % save_every == 0 and the last step. With ``two_step``, every
+    step from the third on starts from the forces of the last two steps (``Y``).
+    Returns (status, steps done, rows saved).
     """
     d = q0.shape[0]
     r = c.shape[0]
@@ -156,6 +174,7 @@ def nystrom_fixed_point(
     v_lost = np.zeros(d)
     G = np.zeros((r, d))  # M^-1 grad V at the stages (the acceleration is -G)
     Gold = np.zeros((r, d))
+    G2 = np.zeros((r, d))  # the step before the last
     Q = np.zeros((r, d))
     Qi = np.zeros(d)
     base = np.zeros(d)
@@ -173,11 +192,18 @@ def nystrom_fixed_point(
             for i in range(first, last):
                 for a in range(d):
                     acc = 0.0
-                    for j in range(r):
-                        acc += X[i, j] * Gold[j, a]
+                    if two_step and k > 1:
+                        for j in range(r):
+                            acc += Y[i, j] * G2[j, a]
+                        for j in range(r):
+                            acc += Y[i, r + j] * Gold[j, a]
+                    else:
+                        for j in range(r):
+                            acc += X[i, j] * Gold[j, a]
                     G[i, a] = acc
             if lobatto:
                 G[0, :] = Gold[r - 1, :]  # first same as last
+            G2[:, :] = Gold
         it = 0
         previous = np.inf
         while True:
@@ -347,7 +373,7 @@ def _rows(n_steps: int, save_every: int) -> int:
 
 def run_nystrom(
     problem: int, tables: FixedPointTables, q0, p0, h: float, n_steps: int,
-    save_every: int = 1, params=None, maxiter: int = 100,
+    save_every: int = 1, params=None, maxiter: int = 100, two_step: bool = False,
 ) -> StrongRun:  # fmt: skip
     """:func:`nystrom_fixed_point` from (q0, p0) (momenta; M diagonal and constant)."""
     prm = hw._prm(params)
@@ -360,7 +386,7 @@ def run_nystrom(
     t = tables
     status, done, saved = nystrom_fixed_point(
         problem, prm, q0, v0, float(h), int(n_steps), int(save_every), t.Abar, t.bbar, t.b,
-        t.c, t.X, t.lobatto, int(maxiter), q_out, v_out, sweeps,
+        t.c, t.X, t.lobatto, int(maxiter), q_out, v_out, sweeps, t.Y, bool(two_step),
     )  # fmt: skip
     hw._check(status, done, "nystrom_fixed_point")
     return StrongRun(q_out[:saved], v_out[:saved] / inv_mass, sweeps)

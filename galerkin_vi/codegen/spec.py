@@ -47,7 +47,7 @@ __all__ = [
     "use_banded",
 ]
 
-GENERATOR_VERSION = "18"
+GENERATOR_VERSION = "19"
 
 #: the fewest instances of a term that become a scatter loop (:mod:`.scatter`)
 MIN_REPEATS = 8

@@ -78,16 +78,25 @@ class SeparableTables:
         :math:`\hat c`, :math:`\hat Y`, :math:`\hat W` (rows :math:`\mu = 1..s`).
     Phi1 : ndarray, shape (r, s)
         :math:`\Phi_{i\mu}`, :math:`\mu = 1..s`.
-    force_extrapolation : ndarray, shape (u, r)
-        :math:`\ell_j(1 + c_i)`, the Lagrange basis on the quadrature nodes
-        :math:`c_1..c_r` at the implicit points of the next step: the previous
-        step's forces :math:`F_j` extrapolated,
-        :math:`\tilde F_i = \sum_j \ell_j(1 + c_i) F_j`, give the next step's
-        first iterate :math:`Z_i = M^{-1}(\text{offset}_i + h^2\sum_j \hat W_{ij}
-        \tilde F_j)`. Its error is :math:`h^2` times that of the extrapolated
-        forces, often below an ulp of :math:`Z`, so the first sweep moves nothing
-        (the position polynomial extrapolated instead is off by
-        :math:`O(h^{s+1})`: one sweep more per step).
+    force_extrapolation : ndarray, shape (u, 3 r)
+        The forces of earlier steps extrapolated to the implicit points of the
+        next step, whose first iterate they give,
+        :math:`Z_i = M^{-1}(\text{offset}_i + h^2\sum_j \hat W_{ij} \tilde F_j)`.
+        Columns :math:`0..r-1`: :math:`\ell_j(1 + c_i)`, the Lagrange basis on
+        the last step's nodes :math:`c_1..c_r`,
+        :math:`\tilde F_i = \sum_j \ell_j(1 + c_i) F_j` (error
+        :math:`O(h^r)`), for the second step of a run. Columns :math:`r..3r-1`:
+        the Lagrange basis on the nodes of the last two steps,
+        :math:`c_j - 1` (columns :math:`r..2r-1`, the step before the last) and
+        :math:`c_j` (columns :math:`2r..3r-1`, the last), at :math:`1 + c_i`
+        (error :math:`O(h^{2r})`), for every later step. A node of the older
+        step that is also one of the last step (Lobatto's end, :math:`c_r - 1 =
+        c_1 = 0`) is left out, its column zero. The first iterate's error is
+        :math:`h^2` times that of the extrapolated forces; from two steps it is
+        below an ulp of :math:`q` often enough at small :math:`h` that the first
+        sweep leaves the stage positions bit-identical, and the step needs one
+        sweep instead of two (docs/performance.md). Extrapolating the position
+        polynomial instead is off by :math:`O(h^{s+1})`: one sweep more per step.
     reuse_endpoint : bool
         The first point is :math:`q_k` and the last is :math:`q_{k+1}`
         (Lobatto quadrature, collocated ends), so the force at the end of one
@@ -151,6 +160,20 @@ def lagrange_values_mp(nodes, x) -> list:
     return out
 
 
+def two_step_extrapolation_mp(c, x) -> list:
+    """The Lagrange basis on the nodes of two steps, ``c - 1`` and ``c``, at ``x``: ``2 r``
+    weights, the older step's first. An older node equal to a newer one (a Lobatto end) is
+    left out of the basis and gets the weight 0."""
+    tiny = mpmath.mpf(10) ** (-_DIGITS + 5)
+    older = [cj - 1 for cj in c]
+    kept = [j for j, node in enumerate(older) if all(abs(node - cm) > tiny for cm in c)]
+    values = lagrange_values_mp([older[j] for j in kept] + list(c), x)
+    weights = [mpmath.mpf(0)] * len(c)
+    for place, j in enumerate(kept):
+        weights[j] = values[place]
+    return weights + values[len(kept) :]
+
+
 def _matrix(rows) -> mpmath.matrix:
     return mpmath.matrix([list(r) for r in rows])
 
@@ -202,7 +225,10 @@ def _compute(method: Galerkin) -> SeparableTables:
         implicit = [i for i in range(r) if moves[i] and drives[i]]
         known = [i for i in range(r) if not moves[i]]
         rest = [i for i in range(r) if moves[i] and not drives[i]]
-        X = [lagrange_values_mp(c, 1 + c[i]) for i in implicit]
+        X = [
+            lagrange_values_mp(c, 1 + c[i]) + two_step_extrapolation_mp(c, 1 + c[i])
+            for i in implicit
+        ]
         last_is_end = r - 1 in rest and all(
             abs(Phi1[r - 1, mu] - (mu == s - 1)) <= tiny for mu in range(s)
         )
@@ -226,6 +252,6 @@ def _compute(method: Galerkin) -> SeparableTables:
         control_a=rounded(control_a, range(s), range(r)),
         control_force=rounded(control_force, range(s), range(r)),
         Phi1=rounded(Phi1, range(r), range(s)),
-        force_extrapolation=np.array(X, dtype=float).reshape(len(implicit), r),
+        force_extrapolation=np.array(X, dtype=float).reshape(len(implicit), 3 * r),
         reuse_endpoint=reuse_endpoint,
     )
