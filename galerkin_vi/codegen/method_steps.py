@@ -209,9 +209,8 @@ def render_method_steps(
                 body.append(f"W_{i}_{j} = h2 * {literal(stage_force[i, j])}")
     body += [f"F_{j}_{a} = 0.0" for j in range(r) for a in coords]
     body += [f"X_{i}_{a} = 0.0" for i in range(u) for a in coords]
-    body += [f"L_{j}_{a} = 0.0" for j in range(r) for a in coords if X[:, r + j].any()]
-    body += [f"P{kind}_{i}_{a} = 0.0" for kind in "ot" for i in range(u) for a in coords]
-    body += ["two_steps = False"]
+    if X.shape[1] == 3 * r:
+        body += [f"L_{j}_{a} = 0.0" for j in range(r) for a in coords if X[:, r + j].any()]
     body += [
         f"contraction = min(MASS_CONTRACTION_MAX, MASS_CONTRACTION * {u} * {n})",
         "budget = max(maxiter // 2, maxiter - NEWTON_RESERVE)",
@@ -308,31 +307,25 @@ def render_method_steps(
     step += [f"if status != {_STATUS_OK}:", *indented(kept, 1)]
     step += ["if residual > worst:", "    worst = residual"]
     step += compensated_lines("p", "e", "d", n)
-    # the next step's forces from one step and from two (SeparableTables.force_extrapolation:
-    # columns 0..r-1 and r..3r-1), the next step starting from the two-step ones where they
-    # came closer to this step's forces (the shared loop's rule)
-    old_forces = [j for j in range(r) if X[:, r + j].any()]
-    judge = ["miss_one = 0.0", "miss_two = 0.0"]
-    for i in range(u):
-        for a in coords:
-            judge += [
-                f"miss_one = max(miss_one, abs(Po_{i}_{a} - F_{implicit[i]}_{a}))",
-                f"miss_two = max(miss_two, abs(Pt_{i}_{a} - F_{implicit[i]}_{a}))",
-            ]
-    judge += ["two_steps = miss_two < miss_one"]
-    one_step, two_step, chosen = [], [], []
+    # the next step's forces from this step's, or with a two-step table
+    # (SeparableTables.force_extrapolation of shape (u, 3 r)) after the first step from
+    # this step's and the last step's (older first)
+    two_step = X.shape[1] == 3 * r
+    old_forces = [j for j in range(r) if two_step and X[:, r + j].any()]
+    one, two = [], []
     for i in range(u):
         for a in coords:
             terms = [(literal(X[i, j]), f"F_{j}_{a}") for j in range(r) if X[i, j] != 0.0]
-            one_step.append(f"Po_{i}_{a} = {weighted_sum(terms)}")
-            terms = [(literal(X[i, r + j]), f"L_{j}_{a}") for j in old_forces]
-            terms += [(literal(X[i, 2 * r + j]), f"F_{j}_{a}") for j in range(r)
-                      if X[i, 2 * r + j] != 0.0]  # fmt: skip
-            two_step.append(f"Pt_{i}_{a} = {weighted_sum(terms)}")
-            chosen.append(f"X_{i}_{a} = Pt_{i}_{a} if k > 0 and two_steps else Po_{i}_{a}")
-    if u:
-        step += ["if k > 1:", *indented(judge, 1), *one_step]
-        step += ["if k > 0:", *indented(two_step, 1), *chosen]
+            one.append(f"X_{i}_{a} = {weighted_sum(terms)}")
+            if two_step:
+                terms = [(literal(X[i, r + j]), f"L_{j}_{a}") for j in old_forces]
+                terms += [(literal(X[i, 2 * r + j]), f"F_{j}_{a}") for j in range(r)
+                          if X[i, 2 * r + j] != 0.0]  # fmt: skip
+                two.append(f"X_{i}_{a} = {weighted_sum(terms)}")
+    if u and two_step:
+        step += ["if k > 0:", *indented(two, 1), "else:", *indented(one, 1)]
+    else:
+        step += one
     step += [f"L_{j}_{a} = F_{j}_{a}" for j in old_forces for a in coords]
     if reuse:
         step += [f"F_0_{a} = F_{r - 1}_{a}" for a in coords] + ["have_start_force = True"]

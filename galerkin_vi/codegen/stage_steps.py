@@ -123,9 +123,7 @@ def render_stage_steps(
         f"offset = np.zeros((u, {n}))",
         f"F_next = np.zeros((u, {n}))",
         f"F_last = np.zeros((r, {n}))",
-        f"P_one = np.zeros((u, {n}))",
-        f"P_two = np.zeros((u, {n}))",
-        "two_steps = False",
+        "two_step_start = X.shape[1] == 3 * r",
         f"C = np.zeros((s, {n}))",
         "for il in range(u):",
     ]
@@ -237,32 +235,18 @@ def render_stage_steps(
     step += [f"if status != {_STATUS_OK}:", *indented(kept, 1)]
     step += ["if residual > worst:", "    worst = residual"]
     step += compensated_lines("p", "e", "d", n)
-    # the next step's forces from one step and from two, the next step starting from the
-    # two-step ones where they came closer to this step's forces (the shared loop's rule)
-    judge = ["miss_one = 0.0", "miss_two = 0.0", "for il in range(u):", "    j = implicit[il]"]
-    for a in coords:
-        judge += [
-            f"    miss_one = max(miss_one, abs(P_one[il, {a}] - F[j, {a}]))",
-            f"    miss_two = max(miss_two, abs(P_two[il, {a}] - F[j, {a}]))",
-        ]
-    judge += ["two_steps = miss_two < miss_one"]
-    step += ["if k > 1:", *indented(judge, 1)]
-    extrapolate = _sums("j", "r", "X[il, j]", "F[j, {a}]", n)
-    extrapolate += [f"P_one[il, {a}] = acc_{a}" for a in coords]
-    two = [f"acc_{a} = 0.0" for a in coords]
-    two += ["for j in range(r):", "    _w = X[il, r + j]"]
-    two += [f"    acc_{a} += _w * F_last[j, {a}]" for a in coords]
-    two += ["for j in range(r):", "    _w = X[il, 2 * r + j]"]
-    two += [f"    acc_{a} += _w * F[j, {a}]" for a in coords]
-    two += [f"P_two[il, {a}] = acc_{a}" for a in coords]
-    extrapolate += ["if k > 0:", *indented(two, 1)]
-    extrapolate += [
-        f"F_next[il, {a}] = P_two[il, {a}] if k > 0 and two_steps else P_one[il, {a}]"
-        for a in coords
-    ]
+    # the next step's forces from this step's, or with a two-step table after the first
+    # step from this step's and the last step's (older first): the shared loop's sums
+    extrapolate = [f"acc_{a} = 0.0" for a in coords]
+    extrapolate += ["if two:", "    for j in range(r):", "        _w = X[il, r + j]"]
+    extrapolate += [f"        acc_{a} += _w * F_last[j, {a}]" for a in coords]
+    extrapolate += ["for j in range(r):", "    _w = X[il, newer + j]"]
+    extrapolate += [f"    acc_{a} += _w * F[j, {a}]" for a in coords]
+    extrapolate += [f"F_next[il, {a}] = acc_{a}" for a in coords]
+    step += ["two = two_step_start and k > 0", "newer = 2 * r if two else 0"]
     step += ["for il in range(u):", *indented(extrapolate, 1)]
-    step += ["for j in range(r):"]
-    step += [f"    F_last[j, {a}] = F[j, {a}]" for a in coords]
+    step += ["if two_step_start:", "    for j in range(r):"]
+    step += [f"        F_last[j, {a}] = F[j, {a}]" for a in coords]
     step += ["if reuse_endpoint:"]
     step += [f"    F[0, {a}] = F[r - 1, {a}]" for a in coords]
     step += ["    have_start_force = True"]

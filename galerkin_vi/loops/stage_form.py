@@ -198,11 +198,10 @@ def stage_form_loop(
     diagonal (it receives the diagonal), else ``None``. ``cheap_first``: start
     each step with the constant-mass iteration. ``X``: the forces of one step
     extrapolated to the next step's implicit points
-    (``SeparableTables.force_extrapolation``, shape (u, 3 r)), from which each
-    step after the first takes its first iterate: from the last step, or, from
-    the third step on, from the last two where that extrapolation came closer to
-    the forces of the step just taken. Returns (status, steps completed, rows saved,
-    max residual, failing increment).
+    (``SeparableTables.force_extrapolation``), from which each step after the
+    first takes its first iterate: from the last step (shape (u, r)), or with a
+    table of shape (u, 3 r) from the last two after the second step. Returns
+    (status, steps completed, rows saved, max residual, failing increment).
 
     **The iteration.** Unknowns are the stage increments :math:`Z_i` at the
     implicit points. Three iterations share one stopping rule: with ``cheap``
@@ -263,10 +262,8 @@ def stage_form_loop(
     C = np.zeros((s, n))
     offset = np.zeros((u, n))
     F_next = np.zeros((u, n))  # the forces extrapolated to the next step's implicit points
-    F_last = np.zeros((r, n))  # the last step's forces, for the next extrapolation
-    P_one = np.zeros((u, n))  # the forces extrapolated from one step and from two
-    P_two = np.zeros((u, n))
-    two_steps = False
+    F_last = np.zeros((r, n))  # the last step's forces, for a two-step extrapolation
+    two_step_start = X.shape[1] == 3 * r
     stage_gauge = np.zeros((u, n))
     control_gauge = np.zeros((s, n))
     # the constant mass matrix, factorised once as a one-stage "Jacobian" (a diagonal
@@ -612,54 +609,36 @@ def stage_form_loop(
             worst = residual
         compensated_add(pk, p_lost, dp)
         # the next step's forces extrapolated (SeparableTables.force_extrapolation): from
-        # this step's (one step), and after the first step also from the last two (two
-        # steps); the next step starts from the two-step ones if they came closer to this
-        # step's forces than the one-step ones did
-        if k > 1:
-            miss_one = 0.0
-            miss_two = 0.0
-            for il in range(u):
-                for a in range(n):
-                    force = F[implicit[il], a]
-                    miss_one = max(miss_one, abs(P_one[il, a] - force))
-                    miss_two = max(miss_two, abs(P_two[il, a] - force))
-            two_steps = miss_two < miss_one
+        # this step's, or, with a two-step table after the first step, from this step's
+        # and the last step's (older first)
+        two = two_step_start and k > 0
+        newer = 2 * r if two else 0
         for il in range(u):
             if wide:
                 for a in range(n):
-                    P_one[il, a] = 0.0
-                    P_two[il, a] = 0.0
-                for j in range(r):
-                    w = X[il, j]
-                    for a in range(n):
-                        P_one[il, a] += w * F[j, a]
-                if k > 0:
+                    F_next[il, a] = 0.0
+                if two:
                     for j in range(r):
                         w = X[il, r + j]
                         for a in range(n):
-                            P_two[il, a] += w * F_last[j, a]
-                    for j in range(r):
-                        w = X[il, 2 * r + j]
-                        for a in range(n):
-                            P_two[il, a] += w * F[j, a]
+                            F_next[il, a] += w * F_last[j, a]
+                for j in range(r):
+                    w = X[il, newer + j]
+                    for a in range(n):
+                        F_next[il, a] += w * F[j, a]
             else:
                 for a in range(n):
                     acc = 0.0
-                    for j in range(r):
-                        acc += X[il, j] * F[j, a]
-                    P_one[il, a] = acc
-                    if k > 0:
-                        acc = 0.0
+                    if two:
                         for j in range(r):
                             acc += X[il, r + j] * F_last[j, a]
-                        for j in range(r):
-                            acc += X[il, 2 * r + j] * F[j, a]
-                        P_two[il, a] = acc
-            for a in range(n):
-                F_next[il, a] = P_two[il, a] if k > 0 and two_steps else P_one[il, a]
-        for j in range(r):
-            for a in range(n):
-                F_last[j, a] = F[j, a]
+                    for j in range(r):
+                        acc += X[il, newer + j] * F[j, a]
+                    F_next[il, a] = acc
+        if two_step_start:
+            for j in range(r):
+                for a in range(n):
+                    F_last[j, a] = F[j, a]
         if reuse_endpoint:
             for a in range(n):
                 F[0, a] = F[r - 1, a]

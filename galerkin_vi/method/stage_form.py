@@ -55,9 +55,17 @@ from numpy.typing import NDArray
 
 from .galerkin import Galerkin
 
-__all__ = ["SeparableTables", "has_stage_form", "separable_tables"]
+__all__ = ["TWO_STEP_POINTS", "SeparableTables", "has_stage_form", "separable_tables"]
 
 _DIGITS = 40
+
+#: the most quadrature points of a method whose steps start from forces extrapolated
+#: over two steps. With up to three points the two-step start saves sweeps at every step
+#: size measured and makes most small steps one sweep instead of two, for u r n more
+#: multiply-adds per step; with more points the one-step start already needs about one
+#: sweep at small steps, and the longer sums cost more than the sweeps they save
+#: (docs/performance.md)
+TWO_STEP_POINTS = 3
 
 
 @dataclass(frozen=True)
@@ -78,25 +86,25 @@ class SeparableTables:
         :math:`\hat c`, :math:`\hat Y`, :math:`\hat W` (rows :math:`\mu = 1..s`).
     Phi1 : ndarray, shape (r, s)
         :math:`\Phi_{i\mu}`, :math:`\mu = 1..s`.
-    force_extrapolation : ndarray, shape (u, 3 r)
+    force_extrapolation : ndarray, shape (u, r) or (u, 3 r)
         The forces of earlier steps extrapolated to the implicit points of the
         next step, whose first iterate they give,
         :math:`Z_i = M^{-1}(\text{offset}_i + h^2\sum_j \hat W_{ij} \tilde F_j)`.
         Columns :math:`0..r-1`: :math:`\ell_j(1 + c_i)`, the Lagrange basis on
         the last step's nodes :math:`c_1..c_r`,
         :math:`\tilde F_i = \sum_j \ell_j(1 + c_i) F_j` (error
-        :math:`O(h^r)`), for the second step of a run. Columns :math:`r..3r-1`:
-        the Lagrange basis on the nodes of the last two steps,
-        :math:`c_j - 1` (columns :math:`r..2r-1`, the step before the last) and
-        :math:`c_j` (columns :math:`2r..3r-1`, the last), at :math:`1 + c_i`
-        (error :math:`O(h^{2r})`), for every later step. A node of the older
-        step that is also one of the last step (Lobatto's end, :math:`c_r - 1 =
-        c_1 = 0`) is left out, its column zero. The first iterate's error is
-        :math:`h^2` times that of the extrapolated forces; from two steps it is
-        below an ulp of :math:`q` often enough at small :math:`h` that the first
-        sweep leaves the stage positions bit-identical, and the step needs one
-        sweep instead of two (docs/performance.md). Extrapolating the position
-        polynomial instead is off by :math:`O(h^{s+1})`: one sweep more per step.
+        :math:`O(h^r)`). For methods of at most :data:`TWO_STEP_POINTS` points,
+        columns :math:`r..3r-1` too: the Lagrange basis on the nodes of the last
+        two steps, :math:`c_j - 1` (columns :math:`r..2r-1`, the step before the
+        last) and :math:`c_j` (columns :math:`2r..3r-1`, the last), at
+        :math:`1 + c_i` (error :math:`O(h^{2r})`), which every step after the
+        second starts from. A node of the older step that is also one of the
+        last step (Lobatto's end, :math:`c_r - 1 = c_1 = 0`) is left out, its
+        column zero. The first iterate's error is :math:`h^2` times that of the
+        extrapolated forces, so with small steps the first sweep often leaves
+        the stage positions bit-identical (docs/performance.md); extrapolating
+        the position polynomial instead is off by :math:`O(h^{s+1})`: one sweep
+        more per step.
     reuse_endpoint : bool
         The first point is :math:`q_k` and the last is :math:`q_{k+1}`
         (Lobatto quadrature, collocated ends), so the force at the end of one
@@ -225,8 +233,10 @@ def _compute(method: Galerkin) -> SeparableTables:
         implicit = [i for i in range(r) if moves[i] and drives[i]]
         known = [i for i in range(r) if not moves[i]]
         rest = [i for i in range(r) if moves[i] and not drives[i]]
+        two_steps = r <= TWO_STEP_POINTS
         X = [
-            lagrange_values_mp(c, 1 + c[i]) + two_step_extrapolation_mp(c, 1 + c[i])
+            lagrange_values_mp(c, 1 + c[i])
+            + (two_step_extrapolation_mp(c, 1 + c[i]) if two_steps else [])
             for i in implicit
         ]
         last_is_end = r - 1 in rest and all(
@@ -252,6 +262,8 @@ def _compute(method: Galerkin) -> SeparableTables:
         control_a=rounded(control_a, range(s), range(r)),
         control_force=rounded(control_force, range(s), range(r)),
         Phi1=rounded(Phi1, range(r), range(s)),
-        force_extrapolation=np.array(X, dtype=float).reshape(len(implicit), 3 * r),
+        force_extrapolation=np.array(X, dtype=float).reshape(
+            len(implicit), 3 * r if two_steps else r
+        ),
         reuse_endpoint=reuse_endpoint,
     )
