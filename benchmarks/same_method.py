@@ -8,11 +8,12 @@ double pendulum, all started from extrapolated stage forces), the ratio, and the
 largest difference of the final states (both runs take the same steps: a large
 difference would mean the two do not compute the same method).
 
-The hand-written side is the faster of the fixed-point kernel of
+The hand-written side is the fastest of the fixed-point kernel of
 ``peers/strong.py`` (any problem and table) and, where one exists, the scalar
 kernel of ``peers/scalar.py`` written for that one method and problem (Gauss(2)
-on the pendulum and Kepler: no arrays, no loops over stages or coordinates);
-the column ``hw kernel`` says which. Both sides run in this process,
+on the pendulum and Kepler: no arrays, no loops over stages or coordinates),
+each also with its first iterate from the last two steps' forces (``2-step``,
+separable problems); the column ``hw kernel`` says which. Both sides run in this process,
 interleaved in alternating order: ``ratio`` is that of the best of ``--repeats``
 runs each, ``paired ratio`` the median and quartiles of the ratios of the runs of
 one repeat (a slow phase of a shared machine falls on both of a pair); only the

@@ -11,7 +11,9 @@ the fastest published codes (IRKGL16 and Hairer–Lubich–Wanner's GNI codes):
   with the Lagrange basis on the stage nodes, :math:`\tilde g_i = \sum_j
   \ell_j(1 + c_i)\, g_j`, pushed through the integration table: it is off by
   :math:`O(h^{s+2})` in the positions, often below an ulp, so the first sweep
-  usually changes nothing;
+  usually changes nothing; with ``two_step`` (:func:`run_nystrom`) from the stage
+  forces of the last two steps, the Lagrange basis on their nodes, as galerkin_vi's
+  stage form starts methods of at most three points;
 * the iteration stops as soon as a sweep leaves every stage position
   **bit-identical** (the forces of the last sweep are then exact at the stages
   and are reused for the update, no extra evaluation), or when the largest
