@@ -21,6 +21,7 @@ the force evaluations) decide.
 from __future__ import annotations
 
 import math
+from functools import cache
 
 import mpmath
 import numba as nb
@@ -169,6 +170,7 @@ def two_step_weights(c) -> np.ndarray:
         return np.array([[float(w) for w in _lagrange(nodes, 1 + mpmath.mpf(x))] for x in c])
 
 
+@cache
 def _flat_tables(two_step: bool = False) -> np.ndarray:
     t = gauss_fixed_point_tables(2)
     # the nodes from strong's exact tables: c rounded once is all the weights need here

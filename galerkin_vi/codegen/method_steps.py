@@ -209,7 +209,7 @@ def render_method_steps(
                 body.append(f"W_{i}_{j} = h2 * {literal(stage_force[i, j])}")
     body += [f"F_{j}_{a} = 0.0" for j in range(r) for a in coords]
     body += [f"X_{i}_{a} = 0.0" for i in range(u) for a in coords]
-    if X.shape[1] == 3 * r:
+    if X.shape[1] == 3 * r and u:
         body += [f"L_{j}_{a} = 0.0" for j in range(r) for a in coords if X[:, r + j].any()]
     body += [
         f"contraction = min(MASS_CONTRACTION_MAX, MASS_CONTRACTION * {u} * {n})",
@@ -310,7 +310,7 @@ def render_method_steps(
     # the next step's forces from this step's, or with a two-step table
     # (SeparableTables.force_extrapolation of shape (u, 3 r)) after the first step from
     # this step's and the last step's (older first)
-    two_step = X.shape[1] == 3 * r
+    two_step = X.shape[1] == 3 * r and u > 0
     old_forces = [j for j in range(r) if two_step and X[:, r + j].any()]
     one, two = [], []
     for i in range(u):
@@ -318,7 +318,8 @@ def render_method_steps(
             terms = [(literal(X[i, j]), f"F_{j}_{a}") for j in range(r) if X[i, j] != 0.0]
             one.append(f"X_{i}_{a} = {weighted_sum(terms)}")
             if two_step:
-                terms = [(literal(X[i, r + j]), f"L_{j}_{a}") for j in old_forces]
+                terms = [(literal(X[i, r + j]), f"L_{j}_{a}") for j in old_forces
+                         if X[i, r + j] != 0.0]  # fmt: skip
                 terms += [(literal(X[i, 2 * r + j]), f"F_{j}_{a}") for j in range(r)
                           if X[i, 2 * r + j] != 0.0]  # fmt: skip
                 two.append(f"X_{i}_{a} = {weighted_sum(terms)}")

@@ -123,7 +123,7 @@ def render_stage_steps(
         f"offset = np.zeros((u, {n}))",
         f"F_next = np.zeros((u, {n}))",
         f"F_last = np.zeros((r, {n}))",
-        "two_step_start = X.shape[1] == 3 * r",
+        "two_step_start = X.shape[1] == 3 * r and u > 0",
         f"C = np.zeros((s, {n}))",
         "for il in range(u):",
     ]

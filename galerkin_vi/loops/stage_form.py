@@ -263,7 +263,7 @@ def stage_form_loop(
     offset = np.zeros((u, n))
     F_next = np.zeros((u, n))  # the forces extrapolated to the next step's implicit points
     F_last = np.zeros((r, n))  # the last step's forces, for a two-step extrapolation
-    two_step_start = X.shape[1] == 3 * r
+    two_step_start = X.shape[1] == 3 * r and u > 0
     stage_gauge = np.zeros((u, n))
     control_gauge = np.zeros((s, n))
     # the constant mass matrix, factorised once as a one-stage "Jacobian" (a diagonal
@@ -610,8 +610,10 @@ def stage_form_loop(
         compensated_add(pk, p_lost, dp)
         # the next step's forces extrapolated (SeparableTables.force_extrapolation): from
         # this step's, or, with a two-step table after the first step, from this step's
-        # and the last step's (older first)
-        two = two_step_start and k > 0
+        # and the last step's (older first) when the next step starts with the cheap
+        # iteration; a step after a hand-over starts Newton from the one-step forces,
+        # whose roots past a singularity are fewer (tests/test_integrator.py, blow-up)
+        two = two_step_start and k > 0 and cheap_first and retry_in == 0
         newer = 2 * r if two else 0
         for il in range(u):
             if wide:

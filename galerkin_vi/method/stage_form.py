@@ -60,10 +60,11 @@ __all__ = ["TWO_STEP_POINTS", "SeparableTables", "has_stage_form", "separable_ta
 _DIGITS = 40
 
 #: the most quadrature points of a method whose steps start from forces extrapolated
-#: over two steps. With up to three points the two-step start saves sweeps at every step
-#: size measured and makes most small steps one sweep instead of two, for u r n more
-#: multiply-adds per step; with more points the one-step start already needs about one
-#: sweep at small steps, and the longer sums cost more than the sweeps they save
+#: over two steps (Gauss(1)-Gauss(3), Lobatto(3)). Measured on the benchmark problems:
+#: fewer sweeps at small and benchmark steps, at small steps often one instead of two,
+#: for u r n more multiply-adds per step; a few more sweeps on a stiff chain at coarse
+#: steps. With more points the one-step start already needs about one sweep at small
+#: steps, and the longer sums and larger weights cost more than they save
 #: (docs/performance.md)
 TWO_STEP_POINTS = 3
 
@@ -97,8 +98,10 @@ class SeparableTables:
         columns :math:`r..3r-1` too: the Lagrange basis on the nodes of the last
         two steps, :math:`c_j - 1` (columns :math:`r..2r-1`, the step before the
         last) and :math:`c_j` (columns :math:`2r..3r-1`, the last), at
-        :math:`1 + c_i` (error :math:`O(h^{2r})`), which every step after the
-        second starts from. A node of the older step that is also one of the
+        :math:`1 + c_i` (error :math:`O(h^{2r})`, :math:`O(h^{2r-1})` with a
+        shared node), which every step after the second starts from when it starts
+        with the fixed point (a step after a hand-over to Newton starts from the
+        one-step columns). A node of the older step that is also one of the
         last step (Lobatto's end, :math:`c_r - 1 = c_1 = 0`) is left out, its
         column zero. The first iterate's error is :math:`h^2` times that of the
         extrapolated forces, so with small steps the first sweep often leaves
