@@ -374,6 +374,24 @@ def test_small_systems_get_a_loop_written_for_the_method_and_large_ones_the_syst
         np.testing.assert_array_equal(generated.newton_iterations, shared.newton_iterations)
 
 
+def test_the_systems_loop_starts_from_two_steps_as_the_shared_loop_does():
+    # Gauss(2) extrapolates the forces of the last two steps (a (u, 3 r) table): with
+    # 2 x 13 unknowns, past METHOD_UNROLLED, the system's own loop runs it, and its
+    # states and sweeps are the shared loop's bit for bit
+    n = METHOD_UNROLLED // 2 + 1
+    system = _oscillators(n)
+    integrator = gvi.Integrator(system, METHODS["gauss2"], specialize="system")
+    assert _loop_name(integrator) == "stage_steps"
+    assert separable_tables(METHODS["gauss2"]).force_extrapolation.shape == (2, 3 * 2)
+    q0, v0 = np.linspace(0.2, 0.9, n), np.linspace(-0.3, 0.3, n)
+    run = dict(h=0.05, n_steps=200, save_every=7)
+    generated = integrator.integrate(q0, v0, **run)
+    shared = integrate_smooth(_shared(integrator), q0, v0, None, **run)
+    np.testing.assert_array_equal(generated.q, shared.q)
+    np.testing.assert_array_equal(generated.p, shared.p)
+    np.testing.assert_array_equal(generated.newton_iterations, shared.newton_iterations)
+
+
 def test_each_method_is_a_cache_entry_of_its_own_and_its_key_follows_the_generator(
     monkeypatch,
 ):
