@@ -40,6 +40,20 @@ def _add(x, lost, dx):
     return t, (x - t) + y
 
 
+@nb.njit(cache=True, inline="always")
+def _next_forces(T, k, o1, o2, g1, g2):
+    """(last step's forces, first iterate's forces) at step ``k``: the last step's
+    forces (g1, g2) extrapolated with ``X``, or from the third step on with ``two_step``
+    together with the step before's (o1, o2), with ``Y`` (tables as :func:`_flat_tables`)."""
+    if k > 1 and T[14] != 0.0:
+        return (
+            g1, g2,
+            T[15] * o1 + T[16] * o2 + T[17] * g1 + T[18] * g2,
+            T[19] * o1 + T[20] * o2 + T[21] * g1 + T[22] * g2,
+        )  # fmt: skip
+    return g1, g2, T[10] * g1 + T[11] * g2, T[12] * g1 + T[13] * g2
+
+
 @nb.njit(cache=True)
 def pendulum_gauss2(q0, v0, h, n_steps, save_every, T, maxiter, q_out, v_out, sweeps):
     """Gauss(2) on the pendulum; ``T`` = (A11, A12, A21, A22, bb1, bb2, b1, b2, c1, c2,
@@ -48,9 +62,6 @@ def pendulum_gauss2(q0, v0, h, n_steps, save_every, T, maxiter, q_out, v_out, sw
     ``Y`` weights, from the third step on). Returns (status, steps done, rows saved)."""
     A11, A12, A21, A22 = T[0], T[1], T[2], T[3]
     bb1, bb2, b1, b2, c1, c2 = T[4], T[5], T[6], T[7], T[8], T[9]
-    X11, X12, X21, X22 = T[10], T[11], T[12], T[13]
-    two_step = T[14] != 0.0
-    Y11, Y12, Y13, Y14, Y21, Y22, Y23, Y24 = T[15], T[16], T[17], T[18], T[19], T[20], T[21], T[22]
     q, v = q0[0], v0[0]
     ql = vl = 0.0
     g1 = g2 = math.sin(q)
@@ -60,14 +71,8 @@ def pendulum_gauss2(q0, v0, h, n_steps, save_every, T, maxiter, q_out, v_out, sw
     q_out[0, 0], v_out[0, 0] = q, v
     saved = 1
     for k in range(n_steps):
-        if k > 1 and two_step:
-            o1, o2, g1, g2 = (
-                g1, g2,
-                Y11 * o1 + Y12 * o2 + Y13 * g1 + Y14 * g2,
-                Y21 * o1 + Y22 * o2 + Y23 * g1 + Y24 * g2,
-            )  # fmt: skip
-        elif k > 0:
-            o1, o2, g1, g2 = g1, g2, X11 * g1 + X12 * g2, X21 * g1 + X22 * g2
+        if k > 0:
+            o1, o2, g1, g2 = _next_forces(T, k, o1, o2, g1, g2)
         it = 0
         previous = np.inf
         while True:
@@ -103,9 +108,6 @@ def kepler_gauss2(q0, v0, h, n_steps, save_every, T, maxiter, q_out, v_out, swee
     """Gauss(2) on the Kepler problem (tables as :func:`pendulum_gauss2`)."""
     A11, A12, A21, A22 = T[0], T[1], T[2], T[3]
     bb1, bb2, b1, b2, c1, c2 = T[4], T[5], T[6], T[7], T[8], T[9]
-    X11, X12, X21, X22 = T[10], T[11], T[12], T[13]
-    two_step = T[14] != 0.0
-    Y11, Y12, Y13, Y14, Y21, Y22, Y23, Y24 = T[15], T[16], T[17], T[18], T[19], T[20], T[21], T[22]
     x, y, u, w = q0[0], q0[1], v0[0], v0[1]
     xl = yl = ul = wl = 0.0
     gx1, gy1 = _kepler_force(x, y)
@@ -116,20 +118,9 @@ def kepler_gauss2(q0, v0, h, n_steps, save_every, T, maxiter, q_out, v_out, swee
     q_out[0, 0], q_out[0, 1], v_out[0, 0], v_out[0, 1] = x, y, u, w
     saved = 1
     for k in range(n_steps):
-        if k > 1 and two_step:
-            ox1, ox2, gx1, gx2 = (
-                gx1, gx2,
-                Y11 * ox1 + Y12 * ox2 + Y13 * gx1 + Y14 * gx2,
-                Y21 * ox1 + Y22 * ox2 + Y23 * gx1 + Y24 * gx2,
-            )  # fmt: skip
-            oy1, oy2, gy1, gy2 = (
-                gy1, gy2,
-                Y11 * oy1 + Y12 * oy2 + Y13 * gy1 + Y14 * gy2,
-                Y21 * oy1 + Y22 * oy2 + Y23 * gy1 + Y24 * gy2,
-            )  # fmt: skip
-        elif k > 0:
-            ox1, ox2, gx1, gx2 = gx1, gx2, X11 * gx1 + X12 * gx2, X21 * gx1 + X22 * gx2
-            oy1, oy2, gy1, gy2 = gy1, gy2, X11 * gy1 + X12 * gy2, X21 * gy1 + X22 * gy2
+        if k > 0:
+            ox1, ox2, gx1, gx2 = _next_forces(T, k, ox1, ox2, gx1, gx2)
+            oy1, oy2, gy1, gy2 = _next_forces(T, k, oy1, oy2, gy1, gy2)
         it = 0
         previous = np.inf
         while True:
