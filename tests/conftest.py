@@ -63,9 +63,9 @@ def warm_cache(tmp_path):
     import shutil
 
     from galerkin_vi.loops import loop_cache_dir
-    from galerkin_vi.loops.readiness import ensure_loops
+    from galerkin_vi.loops.readiness import ensure_all_loops
 
-    ensure_loops()
+    ensure_all_loops()
     source = loop_cache_dir()
     shutil.copytree(source, tmp_path / "loops" / source.name)
     return tmp_path
@@ -74,6 +74,6 @@ def warm_cache(tmp_path):
 def pytest_configure(config):
     """Compile the loops once, in the main process, before xdist starts its workers."""
     if not hasattr(config, "workerinput"):
-        from galerkin_vi.loops.readiness import ensure_loops
+        from galerkin_vi.loops.readiness import ensure_all_loops
 
-        ensure_loops()
+        ensure_all_loops()

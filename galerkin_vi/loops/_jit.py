@@ -343,6 +343,15 @@ _DRIVER = njit(cache=True, error_model="numpy", nogil=True)
 
 
 def driver(function):
-    """A loop's entry point: numba-compiled with ``nogil``, cached under the cache root."""
+    """A loop's entry point: numba-compiled with ``nogil``, cached under the cache root.
+
+    Each variant (tuple of argument types) is compiled at its first use, by a child
+    process, once per machine (:class:`galerkin_vi.loops.on_demand.LoopDispatcher`).
+    """
+    from .on_demand import LoopDispatcher
+
     with cache_locators():
-        return _DRIVER(function)
+        dispatcher = _DRIVER(function)
+    # same layout as numba's CPUDispatcher; only ``compile`` differs
+    dispatcher.__class__ = LoopDispatcher
+    return dispatcher

@@ -1,13 +1,12 @@
 """Whether the loops are compiled on this machine, and compiling all of them at once.
 
-Every loop variant is compiled by :mod:`galerkin_vi.tools.warmup`, run as separate
-processes (``python -m galerkin_vi.tools.warmup --group g --of G``, one group per
-core, at most two): numba compiles one function at a time per process, and the
-variants are independent. A marker file in the loops' cache folder records that
-all of them are there. :func:`ensure_loops` is what an integrator calls before
-its first run: on a machine where the marker is missing it compiles every loop,
-with a one-line message on stderr, instead of compiling a different loop at
-each new kind of problem.
+A run compiles the loop variants it uses at their first use
+(:mod:`galerkin_vi.loops.on_demand`). :func:`compile_all` compiles every variant
+ahead of use (``galerkin-vi warmup``, for images and CI): the runs of
+:mod:`galerkin_vi.tools.warmup` in separate processes, one group per core, at
+most two (numba compiles one function at a time per process), each variant
+under its own lock so that no two processes compile the same one. A marker
+file in the loops' cache folder records that all of them are there.
 """
 
 from __future__ import annotations
@@ -18,8 +17,9 @@ import sys
 import time
 
 from ._jit import discard_unreadable_loops, loop_cache_dir
+from .on_demand import COMPILE_CHILD
 
-__all__ = ["MARKER", "compile_all", "ensure_loops", "loops_ready"]
+__all__ = ["MARKER", "compile_all", "ensure_all_loops", "ensure_loops", "loops_ready"]
 
 #: written into the loops' cache folder once every loop is compiled
 MARKER = "complete"
@@ -75,23 +75,33 @@ def compile_all(jobs: int | None = None, verbose: bool = False) -> float:
 
 
 def ensure_loops() -> None:
-    """Before the first integration on a machine: compile every loop, saying so.
+    """Before the first integration in a process: delete unreadable loop cache files.
 
-    First deletes the loops' cache files that cannot be read back
-    (:func:`galerkin_vi.loops.discard_unreadable_loops`). Cheap after the first
-    call in a process (a flag) and on a machine where the loops are cached (one
-    file test).
+    Each loop variant is compiled at its first use
+    (:mod:`galerkin_vi.loops.on_demand`); this only deletes the cache files that
+    cannot be read back (:func:`galerkin_vi.loops.discard_unreadable_loops`),
+    once per process, so that numba compiles instead of raising.
     """
     global _ENSURED
     if _ENSURED:
         return
     _ENSURED = True
     discard_unreadable_loops()
-    if loops_ready() or os.environ.get("GALERKIN_VI_WARMUP_CHILD"):
+
+
+def ensure_all_loops() -> None:
+    """Compile every loop variant in parallel unless they are all cached, saying so.
+
+    For a process that knows it will need most variants (a test session): the
+    warm-up's processes compile them at once on all cores, where first use would
+    compile them one at a time.
+    """
+    ensure_loops()
+    if loops_ready() or os.environ.get(COMPILE_CHILD):
         return
     sys.stderr.write(
-        "galerkin_vi: compiling the time loops once for this machine (about a minute; "
-        "`galerkin-vi warmup` does this ahead of use)...\n"
+        "galerkin_vi: compiling every time loop for this machine in parallel "
+        "(`galerkin-vi warmup`)...\n"
     )
     seconds = compile_all()
     sys.stderr.write(f"galerkin_vi: time loops compiled in {seconds:.0f} s\n")
