@@ -51,6 +51,7 @@ __all__ = [
     "compile_in_child",
     "compile_request",
     "is_cached",
+    "messages_on",
     "set_messages",
     "variant_lock",
 ]
@@ -72,6 +73,11 @@ def set_messages(on: bool) -> bool:
     global _messages
     previous, _messages = _messages, bool(on)
     return previous
+
+
+def messages_on() -> bool:
+    """Whether the one-line "compiling ..." messages are on."""
+    return _messages
 
 
 def _name(dispatcher) -> str:

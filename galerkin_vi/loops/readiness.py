@@ -12,14 +12,25 @@ file in the loops' cache folder records that all of them are there.
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
+from pathlib import Path
 
 from ._jit import discard_unreadable_loops, loop_cache_dir
-from .on_demand import COMPILE_CHILD
+from .on_demand import COMPILE_CHILD, messages_on
 
-__all__ = ["MARKER", "compile_all", "ensure_all_loops", "ensure_loops", "loops_ready"]
+__all__ = [
+    "MARKER",
+    "compile_all",
+    "ensure_all_loops",
+    "ensure_loops",
+    "loops_ready",
+    "prefetch",
+    "runs_ready",
+]
 
 #: written into the loops' cache folder once every loop is compiled
 MARKER = "complete"
@@ -31,27 +42,47 @@ def loops_ready() -> bool:
     return (loop_cache_dir() / MARKER).exists()
 
 
-def compile_all(jobs: int | None = None, verbose: bool = False) -> float:
+def _marker(label: str, ensembles: bool) -> Path:
+    slug = re.sub(r"[^a-z0-9]+", "-", label.lower()).strip("-")
+    return loop_cache_dir() / "ready" / (slug + ("" if ensembles else ".single"))
+
+
+def runs_ready(labels: Sequence[str], ensembles: bool = True) -> bool:
+    """Whether the warm-up runs ``labels`` have all been compiled (with their ensembles)."""
+    if loops_ready():
+        return True
+    return all(
+        _marker(label, True).exists() or (not ensembles and _marker(label, False).exists())
+        for label in labels
+    )
+
+
+def compile_all(
+    jobs: int | None = None,
+    verbose: bool = False,
+    labels: Sequence[str] | None = None,
+    ensembles: bool = True,
+) -> float:
     """Compile (or load) every loop variant in ``jobs`` processes; return the seconds taken.
 
-    Safe to run from several processes at once: numba writes its cache files
-    through temporary files, and the last complete one wins.
+    With ``labels``, only the variants of those warm-up runs
+    (:mod:`galerkin_vi.tools.warmup`); with ``ensembles=False`` without the member
+    loops of ensembles. Each variant is compiled under its own lock
+    (:mod:`.on_demand`), so processes that run this at once compile it once.
     """
+    from ..tools.warmup import run_indices
+
     jobs = jobs or max(1, min(2, os.cpu_count() or 1))
+    runs = [] if labels is None else ["--runs", ",".join(map(str, run_indices(labels)))]
+    if not ensembles:
+        runs.append("--no-ensembles")
     # the children must use this process's loop folder, fixed when the loops were imported
     env = dict(os.environ, GALERKIN_VI_CACHE_DIR=str(loop_cache_dir().parent.parent))
     start = time.perf_counter()
+    command = [sys.executable, "-m", "galerkin_vi.tools.warmup", "--of", str(jobs), *runs]
     processes = [
         subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "galerkin_vi.tools.warmup",
-                "--group",
-                str(g),
-                "--of",
-                str(jobs),
-            ],
+            [*command, "--group", str(g)],
             env=env,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
@@ -68,10 +99,32 @@ def compile_all(jobs: int | None = None, verbose: bool = False) -> float:
             failures.append(err.strip().splitlines()[-1] if err.strip() else "no message")
     if failures:
         raise RuntimeError(f"compiling the time loops failed: {'; '.join(failures)}")
-    marker = loop_cache_dir() / MARKER
-    marker.parent.mkdir(parents=True, exist_ok=True)
-    marker.write_text("every loop compiled\n")
+    if labels is None and ensembles:
+        marker = loop_cache_dir() / MARKER
+        marker.parent.mkdir(parents=True, exist_ok=True)
+        marker.write_text("every loop compiled\n")
+    for label in labels or ():
+        marker = _marker(label, ensembles)
+        marker.parent.mkdir(parents=True, exist_ok=True)
+        marker.write_text("compiled\n")
     return time.perf_counter() - start
+
+
+def prefetch(labels: Sequence[str], ensembles: bool = False) -> float:
+    """Compile the variants of the warm-up runs ``labels`` in parallel, unless they are ready.
+
+    For a process that knows which loops it will run (``galerkin-vi verify``):
+    compiled at once on all cores where first use would compile them one after
+    another. Returns the seconds taken (0 when everything was ready).
+    """
+    if runs_ready(labels, ensembles) or os.environ.get(COMPILE_CHILD):
+        return 0.0
+    if messages_on():
+        sys.stderr.write(
+            f"galerkin_vi: compiling the {len(labels)} time loops this job runs, in parallel "
+            "(once for this machine)...\n"
+        )
+    return compile_all(labels=labels, ensembles=ensembles)
 
 
 def ensure_loops() -> None:

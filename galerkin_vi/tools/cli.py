@@ -98,6 +98,9 @@ def _verify(args: argparse.Namespace) -> int:
         bar.set_description(label)
 
     start = time.perf_counter()
+    from ..loops.readiness import prefetch
+
+    prefetch(report.loop_labels(selected, args.degrees, args.families))
     try:
         rows = report.verify(
             selected, args.degrees, args.families, args.step_counts, progress, args.compositions

@@ -327,6 +327,33 @@ def verify(
     return rows
 
 
+def loop_labels(
+    selected: Iterable[tuple[str, problems.Problem, Sequence[int]]],
+    degrees: Sequence[int],
+    families: Sequence[str],
+) -> list[str]:
+    """The warm-up runs whose loops the Galerkin studies of :func:`verify` run.
+
+    ``galerkin-vi verify`` compiles them in parallel at its start
+    (:func:`galerkin_vi.loops.readiness.prefetch`); a study whose loop variant
+    differs still compiles it at first use.
+    """
+    from .warmup import variant_labels
+
+    labels: dict[str, None] = {}
+    for _, problem, _ in selected:
+        for s in degrees:
+            for family in families:
+                if problem.system.m and family != "lobatto":
+                    continue
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", OrderReductionWarning)
+                    method = Galerkin(s, FAMILIES[family](s))
+                integrator = Integrator(problem.system, method)
+                labels.update(dict.fromkeys(variant_labels(integrator.run_spec)))
+    return list(labels)
+
+
 def _study_row(
     name: str, degree: int, label: str, problem: problems.Problem,
     method: Galerkin | Composition, mp_counts, step_counts, reference,

@@ -16,8 +16,9 @@ import os
 import sys
 import time
 from collections.abc import Sequence
+from functools import cache
 
-__all__ = ["BOUNDARY_VALUE", "RUN_SECONDS", "main", "warm_up"]
+__all__ = ["BOUNDARY_VALUE", "RUN_SECONDS", "main", "run_indices", "variant_labels", "warm_up"]
 
 #: the label of the run that compiles the Newton iteration of boundary-value problems
 #: (:mod:`galerkin_vi.loops.action`) instead of a time loop
@@ -27,6 +28,7 @@ BOUNDARY_VALUE = "boundary-value problem"
 TANGENT = "tangent map"
 
 
+@cache
 def _runs():
     """(label, system, method, specialize, q0, v0) of the warm-up runs, one per loop variant.
 
@@ -126,6 +128,27 @@ def _runs():
     ]
 
 
+def variant_labels(spec) -> list[str]:
+    """The warm-up runs that compile the shared loop variants a run spec calls.
+
+    ``spec`` is a :class:`~galerkin_vi.run.spec.RunSpec`; the explicit path (loops
+    generated per system) needs none. A varying-mass run may hand over to the
+    general loop with its couplings, so that variant comes with it.
+    """
+    banded = ", banded" if spec.model is not None and spec.model[2] is not None else ""
+    if spec.path == "separable":
+        return [f"stage form, {'diagonal M' if spec.diagonal_mass else 'full M'}{banded}"]
+    if spec.path == "newton":
+        return ["general" + banded + (", couplings" if spec.couplings else "")]
+    if spec.path == "linear":
+        return ["linear" + banded]
+    if spec.path == "constrained":
+        return ["constrained" + (", banded" if spec.band is not None else "")]
+    if spec.path == "varying_mass":
+        return ["varying mass", "general, couplings"]
+    return []
+
+
 #: compile seconds of each run, two processes on a 2-core machine (numba 0.68), in the
 #: order of :func:`_runs`: the parallel groups are balanced by them (docs/performance.md
 #: gives the command that measures them)
@@ -161,37 +184,54 @@ RUN_SECONDS = (
 )
 
 
-def _group(index: int, count: int) -> list[int]:
+def _group(index: int, count: int, runs: Sequence[int] | None = None) -> list[int]:
     """Runs of group ``index`` of ``count``: longest first, each to the least loaded group."""
     loads = [0.0] * count
     members: list[list[int]] = [[] for _ in range(count)]
-    for run in sorted(range(len(RUN_SECONDS)), key=lambda r: -RUN_SECONDS[r]):
+    chosen = range(len(RUN_SECONDS)) if runs is None else runs
+    for run in sorted(chosen, key=lambda r: -RUN_SECONDS[r]):
         target = loads.index(min(loads))
         loads[target] += RUN_SECONDS[run]
         members[target].append(run)
     return sorted(members[index])
 
 
-def warm_up(group: int = 0, of: int = 1, verbose: bool = False) -> dict[str, float]:
-    """Run group ``group`` of ``of`` of the warm-up runs in this process.
+def run_indices(labels: Sequence[str]) -> list[int]:
+    """The indices of the warm-up runs named ``labels`` (ValueError for an unknown one)."""
+    known = {run[0]: i for i, run in enumerate(_runs())}
+    unknown = [label for label in labels if label not in known]
+    if unknown:
+        raise ValueError(f"no warm-up run is named {unknown[0]!r}; the runs: {'; '.join(known)}")
+    return [known[label] for label in labels]
 
-    Returns the seconds each run took, by the variant's label.
+
+def warm_up(
+    group: int = 0,
+    of: int = 1,
+    verbose: bool = False,
+    runs: Sequence[int] | None = None,
+    ensembles: bool = True,
+) -> dict[str, float]:
+    """Run group ``group`` of ``of`` of the warm-up runs (all, or the indices ``runs``) here.
+
+    With ``ensembles=False`` the member loops of ensembles are left out. Returns the
+    seconds each run took, by the variant's label.
     """
     from ..loops import compiling
 
-    runs = _runs()
+    all_runs = _runs()
     seconds: dict[str, float] = {}
     # numba's compiler with the package's faster inliner and post-processor, only here
     with compiling():
-        for index in _group(group, of):
-            label = runs[index][0]
-            seconds[label] = _warm_up_one(runs[index])
+        for index in _group(group, of, runs):
+            label = all_runs[index][0]
+            seconds[label] = _warm_up_one(all_runs[index], ensembles)
             if verbose:
                 print(f"  {seconds[label]:5.1f} s  {label}", flush=True)
     return seconds
 
 
-def _warm_up_one(run: tuple) -> float:
+def _warm_up_one(run: tuple, ensembles: bool = True) -> float:
     """Compile (or load) the loops of one warm-up run; the seconds it took."""
     from ..action import solve_bvp
     from ..integrator import Integrator
@@ -205,8 +245,10 @@ def _warm_up_one(run: tuple) -> float:
 
         integrator = Integrator(system, method, specialize=specialize)
         integrator.integrate(q0, v0=v0, h=0.01, n_steps=2, tangent=True, on_failure="raise")
-        # the member loop of ensembles with the tangent map
-        integrator.integrate_many([q0, q0], [v0, v0], h=0.01, n_steps=2, tangent=True, workers=1)
+        if ensembles:  # the member loop of ensembles with the tangent map
+            integrator.integrate_many(
+                [q0, q0], [v0, v0], h=0.01, n_steps=2, tangent=True, workers=1
+            )
         if not system.m:
             warm_up_adjoint(integrator, q0, v0)
     elif label.startswith("explicit"):
@@ -222,7 +264,7 @@ def _warm_up_one(run: tuple) -> float:
     else:
         integrator = Integrator(system, method, specialize=specialize)
         integrator.integrate(q0, v0=v0, h=0.01, n_steps=2, on_failure="raise")
-        if integrator.kernel_path != "explicit":
+        if ensembles and integrator.kernel_path != "explicit":
             # the member loop of ensembles (and their Legendre transforms) for this loop
             integrator.integrate_many([q0, q0], [v0, v0], h=0.01, n_steps=2, workers=1)
     return time.perf_counter() - start
@@ -233,12 +275,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m galerkin_vi.tools.warmup")
     parser.add_argument("--group", type=int, default=0)
     parser.add_argument("--of", type=int, default=1)
+    parser.add_argument("--runs", help="comma-separated indices of the runs (default: all)")
+    parser.add_argument("--no-ensembles", action="store_true", help="leave out member loops")
     args = parser.parse_args(argv)
     if not 0 <= args.group < args.of:
         parser.error(f"--group must be in [0, {args.of})")
     # this process is the warm-up: its integrations must not start another one
     os.environ["GALERKIN_VI_WARMUP_CHILD"] = "1"
-    warm_up(args.group, args.of, verbose=True)
+    runs = [int(i) for i in args.runs.split(",")] if args.runs else None
+    warm_up(args.group, args.of, verbose=True, runs=runs, ensembles=not args.no_ensembles)
     return 0
 
 
