@@ -1,4 +1,4 @@
-"""The measurements behind design choices cited in docs/performance.md.
+"""The measurements behind design choices cited in docs/design-notes.md.
 
 Each study times the chosen way against the alternative it replaces, in one process,
 best of several repeats, the time loops already compiled (run ``galerkin-vi warmup``

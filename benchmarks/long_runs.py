@@ -1,6 +1,6 @@
 """Long runs: memory with save_every, and energy drift at round-off level.
 
-Not a test: prints figures for the performance notes.
+Not a test: prints figures for the design notes (docs/design-notes.md, "Accuracy over long runs").
 
 - 1e7 pendulum steps (s = 2, Lobatto 3, h = 0.05) with ``save_every=1000``: peak
   resident memory of the process (``resource.getrusage``) and run time.

@@ -67,7 +67,7 @@ def has_generated_loops(system, pieces) -> bool:
     :data:`EXPLICIT_UNROLLED` coordinates. :func:`.spec.kernel_spec` also asks for
     straight-line point functions, which the loops copy: no repeated terms (where
     the point functions loop over a pair potential, the force is most of a
-    sub-step, and written out it takes seconds to compile: docs/performance.md).
+    sub-step, and written out it takes seconds to compile: docs/design-notes.md).
     """
     structure = system.structure
     if system.m or system.n > EXPLICIT_UNROLLED:

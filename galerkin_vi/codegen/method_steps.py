@@ -67,7 +67,7 @@ LOOP_TEXT = "STAGE_LOOP_TEXT"
 
 #: the most stage unknowns (implicit points times coordinates) a loop is written out for:
 #: numba's compile time grows with the text, about 0.6 s + 0.11 s per unknown
-#: (docs/performance.md); beyond it the system's own loop (:mod:`.stage_steps`) serves
+#: (docs/design-notes.md); beyond it the system's own loop (:mod:`.stage_steps`) serves
 METHOD_UNROLLED = 24
 
 _STATUS_OK = 0

@@ -272,7 +272,7 @@ def _scatter_loop(group: ScatterGroup, columns: list[int], value: bool) -> list[
     ``value``: add the template itself into ``_total`` (the Lagrangian) instead.
     Instances run one at a time: written side by side (:mod:`.lanes`), a loop's
     body is four times as long and compiles several times slower
-    (docs/performance.md), which a large system's build cannot afford.
+    (docs/design-notes.md), which a large system's build cannot afford.
     """
     temporaries, adds, total = _group_code(group)
     lines = [f"    for _k in range({group.count}):"]

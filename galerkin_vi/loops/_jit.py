@@ -57,6 +57,8 @@ __all__ = [
 _PACKAGE = Path(__file__).resolve().parent.parent
 # every source a compiled loop is made of (the slot table: its numbers are compiled in)
 _SOURCES = ("newton.py", "loops", "codegen/slots.py")
+# modules of the loops' folder that decide when and where to compile, not what
+_NOT_COMPILED = frozenset({"on_demand.py", "readiness.py"})
 
 
 @cache
@@ -66,6 +68,8 @@ def _source_hash() -> str:
         path = _PACKAGE / name
         files = sorted(path.glob("*.py")) if path.is_dir() else [path]
         for file in files:
+            if file.name in _NOT_COMPILED:
+                continue
             h.update(file.name.encode())
             h.update(file.read_bytes())
     return h.hexdigest()[:20]
@@ -310,8 +314,8 @@ def compiling() -> Iterator[None]:
     Inside the ``with`` block numba's IR inliner copies each callee's variable
     scope once per inlining (:class:`_SharedMemoCopy`) and its post-processor
     computes block-entry liveness only on demand (:func:`_lean_postproc`), work
-    that grows with the size of the inlined IR (docs/performance.md,
-    "Measurements behind the loops' design"). On exit numba's originals are back in place.
+    that grows with the size of the inlined IR (docs/design-notes.md,
+    "Compiling the loops"). On exit numba's originals are back in place.
     Nested blocks install once; with a numba whose internals differ the block
     compiles with numba's own. Process-wide while active: enter it only in a
     process that compiles nothing else meanwhile (the warm-up).

@@ -81,7 +81,7 @@ def advance_position(qk, q_lost, C, turns, periodic):
 
     ``q_lost`` carries the rounding error of each addition into the next one, so
     that rounding does not accumulate as a drift of the energy over long runs
-    (docs/performance.md, "Measurements behind the loops' design").
+    (docs/design-notes.md, "Accuracy over long runs").
     """
     s = C.shape[0] - 1
     for a in range(qk.shape[0]):

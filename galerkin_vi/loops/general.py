@@ -92,7 +92,7 @@ def momentum_increment(fn, t0, h, qk, C, prm, b, c, Phi, D, Q, V, Lq, Lv, out):
     cancel down to it, with a rounding error of order :math:`\varepsilon|p|`
     in every step; the increment is small, and :func:`compensated_add` carries
     the rounding of its addition to the next step, so long runs keep their
-    energy to round-off (docs/performance.md, "Measurements behind the loops' design").
+    energy to round-off (docs/design-notes.md, "Accuracy over long runs").
     """
     r = b.shape[0]
     n = qk.shape[0]

@@ -28,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import importlib
+import importlib.util
 import os
 import pickle
 import subprocess
@@ -48,12 +49,14 @@ __all__ = [
     "COMPILE_CHILD",
     "COMPILE_SECONDS",
     "LoopDispatcher",
+    "compile_in_background",
     "compile_in_child",
     "compile_request",
     "is_cached",
     "messages_on",
     "set_messages",
     "variant_lock",
+    "wait_for_background",
 ]
 
 #: set in a process that compiles the loops itself (a warm-up process, a compile child)
@@ -222,14 +225,91 @@ class LoopDispatcher(CPUDispatcher):
             self._cache = cache
 
 
-def compile_request(stream) -> int:
-    """The child's side: compile the variant named on ``stream`` (pickled) into the cache."""
-    from ._jit import compiling
+def _function_of(module: str, qualname: str, file: str | None):
+    """The function a compile request names: by module name, or from a generated file."""
+    if file is None:
+        target = importlib.import_module(module)
+    else:
+        from ._jit import cache_locators
 
-    module, qualname, sig = pickle.load(stream)
-    target = importlib.import_module(module)
+        spec = importlib.util.spec_from_file_location(module, file)
+        target = importlib.util.module_from_spec(spec)
+        sys.modules[module] = target
+        with cache_locators():
+            spec.loader.exec_module(target)
     for part in qualname.split("."):
         target = getattr(target, part)
-    with compiling():
-        target.compile(sig)
+    return target
+
+
+def compile_request(stream) -> int:
+    """The child's side: compile the variant named on ``stream`` (pickled) into the cache.
+
+    The request is ``(module, qualname, sig)`` for a loop driver, or
+    ``(module, qualname, sig, file, options)`` for a function of a generated module
+    (a system's own loop), which is decorated here with numba's ``options`` as the
+    parent's and compiled under the variant's lock.
+    """
+    from numba import jit
+
+    from ._jit import cache_locators, compiling
+
+    request = pickle.load(stream)
+    module, qualname, sig = request[:3]
+    if len(request) == 3:
+        target = _function_of(module, qualname, None)
+        with compiling():
+            target.compile(sig)
+        return 0
+    file, options = request[3:]
+    function = _function_of(module, qualname, file)
+    with cache_locators():
+        target = jit(**options)(function)
+    with variant_lock(target, sig):
+        if not is_cached(target, sig):
+            target.compile(sig)
     return 0
+
+
+_BACKGROUND: dict[tuple, subprocess.Popen] = {}
+
+
+def compile_in_background(dispatcher, sig: tuple) -> bool:
+    """Start compiling ``dispatcher`` (a function of a generated module) for ``sig`` in a
+    child process that this one does not wait for; its result lands in the disk cache.
+
+    At most one child per variant and process (a failed one is not retried); returns
+    False when one was started before. The child takes the variant's lock, so processes
+    that ask at once compile it once.
+    """
+    for child in _BACKGROUND.values():
+        child.poll()  # reaps a finished child
+    key = (id(dispatcher), sig)
+    if key in _BACKGROUND:
+        return False
+    function = dispatcher.py_func
+    options = {k: v for k, v in dispatcher.targetoptions.items() if k != "nopython"}
+    options.update(nopython=True, cache=True)
+    request = pickle.dumps(
+        (function.__module__, function.__qualname__, sig, function.__code__.co_filename, options)
+    )
+    from ._jit import loop_cache_dir
+
+    env = dict(os.environ, GALERKIN_VI_CACHE_DIR=str(loop_cache_dir().parent.parent))
+    child = subprocess.Popen(
+        [sys.executable, "-c", _CHILD],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env=env,
+    )
+    child.stdin.write(request)
+    child.stdin.close()
+    _BACKGROUND[key] = child
+    return True
+
+
+def wait_for_background(timeout: float | None = None) -> None:
+    """Wait for the background compilations this process started (tests, benchmarks)."""
+    for child in list(_BACKGROUND.values()):
+        child.wait(timeout)

@@ -53,7 +53,7 @@ __all__ = ["stage_form_loop", "too_slow"]
 # MASS_CONTRACTION * (number of unknowns) times the one before, capped at
 # MASS_CONTRACTION_MAX: a full Newton step costs relatively more with more unknowns,
 # so the break-even contraction grows with them, and on large chains slow sweeps still
-# beat Newton iterations (docs/performance.md)
+# beat Newton iterations (docs/design-notes.md)
 MASS_CONTRACTION = 0.01
 MASS_CONTRACTION_MAX = 0.9
 # ... or when, at its contraction, it would not reach the tolerance within the
@@ -67,7 +67,7 @@ MASS_RETRY = 64
 # sums over the stages, sum_j w_j T[j, a] for all a: from this many coordinates on as
 # whole-row updates (for j: for a: x[a] += w_j T[j, a], long independent inner loops),
 # below as one dot product per coordinate (fewer loop set-ups): the row updates win on
-# long rows, the dot products on short ones (docs/performance.md). The order of the
+# long rows, the dot products on short ones (docs/design-notes.md). The order of the
 # additions is the same.
 WIDE = 4
 

@@ -12,8 +12,8 @@ data, in two kinds:
   pair of flags). numba compiles one variant per combination of types (each
   cached once per machine) and drops the dead branches: these tests sit in
   the innermost loops of small systems, where a run-time test costs a large
-  share of a step (docs/performance.md, "Measurements behind the loops'
-  design");
+  share of a step (docs/design-notes.md, "Switches compiled as loop
+  variants");
 - *traits*, an int64 array with the slots of :mod:`.abi` (re-exported here),
   and the angle mask ``periodic`` of the implicit loops, tested once per block
   or per step, where a test costs nothing measurable; they add no compiled

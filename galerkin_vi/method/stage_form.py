@@ -65,7 +65,7 @@ _DIGITS = 40
 #: for u r n more multiply-adds per step; a few more sweeps on a stiff chain at coarse
 #: steps. With more points the one-step start already needs about one sweep at small
 #: steps, and the longer sums and larger weights cost more than they save
-#: (docs/performance.md)
+#: (docs/design-notes.md, "The first iterate from two steps")
 TWO_STEP_POINTS = 3
 
 
@@ -105,7 +105,7 @@ class SeparableTables:
         last step (Lobatto's end, :math:`c_r - 1 = c_1 = 0`) is left out, its
         column zero. The first iterate's error is :math:`h^2` times that of the
         extrapolated forces, so with small steps the first sweep often leaves
-        the stage positions bit-identical (docs/performance.md); extrapolating
+        the stage positions bit-identical (docs/design-notes.md, "The first iterate from two steps"); extrapolating
         the position polynomial instead is off by :math:`O(h^{s+1})`: one sweep
         more per step.
     reuse_endpoint : bool

@@ -108,7 +108,7 @@ def has_velocity_stages(method: Galerkin) -> bool:
 
 #: the varying-mass loop is chosen from this degree on: below, Newton's Jacobian is
 #: small (s n = 4 unknowns on the double pendulum) and simplified Newton takes less
-#: time at every step size (docs/performance.md, "Measurements behind design choices")
+#: time at every step size (docs/design-notes.md, "The varying-mass loop")
 MIN_FIXED_POINT_DEGREE = 3
 
 

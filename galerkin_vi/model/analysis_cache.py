@@ -58,7 +58,7 @@ def analysis_key(*parts: Any) -> str:
     SymPy pickles an expression as its class and canonically ordered arguments
     (symbols with their names and assumptions): the bytes are the same in every
     process, whatever the hash seed, and several times cheaper to make than
-    ``srepr`` (docs/performance.md, "Measurements behind design choices").
+    ``srepr`` (docs/design-notes.md, "Building large models").
     :func:`~galerkin_vi.expression_walk.structural_bytes` shares repeated nodes by
     equality, so two builds of one model give one key whichever objects SymPy's
     cache handed out. A part that does not pickle is hashed by ``srepr``.

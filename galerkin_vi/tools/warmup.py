@@ -150,8 +150,8 @@ def variant_labels(spec) -> list[str]:
 
 
 #: compile seconds of each run, two processes on a 2-core machine (numba 0.68), in the
-#: order of :func:`_runs`: the parallel groups are balanced by them (docs/performance.md
-#: gives the command that measures them)
+#: order of :func:`_runs`: the parallel groups are balanced by them (docs/performance.md,
+#: "First use and compile time", gives the command that measures them)
 RUN_SECONDS = (
     27.0,
     27.0,
