@@ -2,7 +2,6 @@ r"""The integrator: a system, a method and a backend, run over many steps."""
 
 from __future__ import annotations
 
-import numbers
 from collections.abc import Iterator, Mapping, Sequence
 from functools import cached_property
 
@@ -15,13 +14,13 @@ from .method.composition import Composition
 from .method.galerkin import Galerkin
 from .model.system import LagrangianSystem
 from .reference import resolve_backend
-from .run.del_step import del_step
+from .run import options
+from .run.dispatch import integrate_run, position_step, run_spec_for, tangent_spec_for
 from .run.ensemble import integrate_many
-from .run.loop_choice import check_composition, hand_over, loop_path
-from .run.smooth import integrate_smooth
-from .run.spec import RunSpec, compiled_run_spec, loop_traits, reference_run_spec
-from .run.stream import check_stream_arguments, stream_chunks
-from .run.tangent import constrained_tangent_spec, variation_request
+from .run.loop_choice import check_composition, loop_path
+from .run.points import point_addresses, point_functions, point_source, spec_summary
+from .run.spec import RunSpec
+from .run.stream import checked_stream
 from .run.trajectory import Trajectory
 
 __all__ = ["Integrator"]
@@ -50,9 +49,13 @@ class Integrator:
         decreasing (no round-off drift).
     maxiter : int
         Newton iteration cap per step (at most 255).
-    specialize : bool or "system"
+    specialize : "auto", bool or "system"
         Let the structure of the problem pick a cheaper time loop (see
-        :attr:`kernel_path`); ``False`` forces the general Newton loop.
+        :attr:`kernel_path`); ``False`` forces the general Newton loop. ``"auto"``
+        (default): ``True``, and ``"system"``'s loops where compiled already (in this
+        process or on disk), compiled in the background, never waited for, once a
+        system is run again or for 1e5 steps (:mod:`galerkin_vi.run.generated_choice`;
+        the trajectory's ``kernel_path`` says which loop ran).
         ``"system"`` also runs the stage-form loop (``"separable"`` path) of a small
         system with a diagonal constant mass as a loop generated for that system and
         method (:mod:`galerkin_vi.codegen.method_steps`: its coordinates, stage values
@@ -112,42 +115,24 @@ class Integrator:
         backend: str = "auto",
         tol: float = 1e-14,
         maxiter: int = 30,
-        specialize: bool | str = True,
+        specialize: bool | str = "auto",
         fixed_point: bool | str = True,
     ) -> None:
-        if not isinstance(system, LagrangianSystem):
-            raise TypeError(f"system must be a LagrangianSystem, got {type(system).__name__}")
-        method = Galerkin(2) if method is None else method
-        if not isinstance(method, (Galerkin, Composition)):
-            raise TypeError(
-                f"method must be a Galerkin or Composition method, got {type(method).__name__}"
-            )
-        if not (isinstance(tol, numbers.Real) and 0 < tol < 1):
-            raise ValueError(f"tol must be a real number in (0, 1), got {tol!r}")
-        if (
-            isinstance(maxiter, bool)
-            or not isinstance(maxiter, numbers.Integral)
-            or not 1 <= maxiter <= 255
-        ):
-            raise ValueError(f"maxiter must be an int in [1, 255], got {maxiter!r}")
+        # checked in the order of the arguments; the backend is resolved here, not in
+        # run.options, so that its fallback warning names the caller's line
+        method = options.integrator_method(system, method)
+        tol, maxiter = options.check_iteration(tol, maxiter)
         if isinstance(method, Composition):
             check_composition(system, method, resolve_backend(backend))
-        elif system.m and not method.collocated:
-            raise ValueError(
-                f"{method!r}: a constrained system needs collocated control and quadrature "
-                "nodes, the constraints being imposed at the control points: use "
-                f"Galerkin({method.degree}) (Lobatto nodes, gauss_lobatto({method.degree + 1}))"
-            )
+        else:
+            options.check_galerkin(system, method)
         self.system = system
         self.method = method
         self.backend = resolve_backend(backend)
-        self.tol = float(tol)
-        self.maxiter = int(maxiter)
-        if specialize not in (True, False, "system"):
-            raise ValueError(f'specialize must be True, False or "system", got {specialize!r}')
-        self.specialize = specialize if specialize == "system" else bool(specialize)
-        hand_over(fixed_point)  # checks the value
-        self.fixed_point = fixed_point
+        self.tol = tol
+        self.maxiter = maxiter
+        self.specialize = options.resolve_specialize(specialize)
+        self.fixed_point = options.check_fixed_point(fixed_point)
 
     @property
     def kernel_path(self) -> str:
@@ -193,29 +178,12 @@ class Integrator:
 
     @cached_property
     def _summary(self) -> codegen.SpecSummary:
-        """What the loops need of the spec, kept with the system's analysis cache.
-
-        A system seen by an earlier process then derives no spec and hashes no
-        expressions (for a 60-mass chain, 0.3 s of SymPy printing).
-        """
-        from .codegen.compiled import generator_fingerprint, numba_version, point_key
-
-        made_by = (numba_version(), generator_fingerprint())
-        stored = self.system.recalled("point_summary")
-        if stored is not None and stored[0] == made_by:
-            return stored[1]
-        summary = codegen.summarize(self._spec, point_key(self._spec))
-        self.system.remember("point_summary", (made_by, summary))
-        return summary
+        """What the loops need of the spec, kept with the system's analysis cache."""
+        return spec_summary(self.system, lambda: self._spec)
 
     @property
     def _points(self):
-        from .codegen.compiled import load_point_functions
-
-        key = self._summary.key
-        return self.system.derived.get(
-            ("points", key), lambda: load_point_functions(lambda: self._spec, key)
-        )
+        return point_functions(self.system, self._summary.key, lambda: self._spec)
 
     @property
     def source(self) -> str:
@@ -224,10 +192,7 @@ class Integrator:
         The time loops are not generated: they are the modules of
         :mod:`galerkin_vi.loops`, the same for every system.
         """
-        if self.backend == "numba":
-            return self._points.source
-        key = codegen.signature(self._spec, "source", "")
-        return codegen.render_module(self._spec, key)
+        return self._points.source if self.backend == "numba" else point_source(self._spec)
 
     @cached_property
     def run_spec(self) -> RunSpec:
@@ -237,39 +202,22 @@ class Integrator:
         0.2 ms to look up, which many short runs (adaptive landing steps,
         ensembles, ``step``, event and contact cuts) would pay every time.
         """
-        path = self.kernel_path
-        if self.backend != "numba":
-            return reference_run_spec(self.system, self.method, path, self.tol, self.maxiter)
-        return compiled_run_spec(
-            self.system,
-            self.method,
-            path,
-            self.tol,
-            self.maxiter,
-            self._summary,
-            self._points,
-            constant_mass=self.uses_constant_mass,
-            hand_over=hand_over(self.fixed_point, bool(self._summary.explicit_velocity)),
+        return run_spec_for(
+            self.system, self.method, self.backend, self.kernel_path, self.tol, self.maxiter,
+            summary=lambda: self._summary, points=lambda: self._points,
+            constant_mass=self.uses_constant_mass, fixed_point=self.fixed_point,
             specialize=self.specialize,
-        )
+        )  # fmt: skip
 
     @cached_property
     def tangent_run_spec(self) -> RunSpec:
         """The run spec of the loop that carries the tangent map: the explicit loop's (with
         the point Hessian) for a :class:`~galerkin_vi.Composition`, the general Newton
         loop's (or the constrained loop's) for a Galerkin method."""
-        if self.backend != "numba":
-            raise ValueError("tangent and sensitivity need the numba backend (compiled loops)")
-        if isinstance(self.method, Composition):
-            return compiled_run_spec(
-                self.system, self.method, "explicit", self.tol, self.maxiter, self._summary,
-                self._points, constant_mass=self.uses_constant_mass, hessian=True,
-            )  # fmt: skip
-        if self.system.m:
-            return constrained_tangent_spec(self.run_spec)
-        return compiled_run_spec(
-            self.system, self.method, "newton", self.tol, self.maxiter, self._summary,
-            self._points, constant_mass=self.uses_constant_mass,
+        return tangent_spec_for(
+            self.system, self.method, self.backend, self.tol, self.maxiter,
+            summary=lambda: self._summary, points=lambda: self._points,
+            constant_mass=self.uses_constant_mass, run_spec=lambda: self.run_spec,
         )  # fmt: skip
 
     def compiled_point_functions(self, names: tuple[str, ...]) -> tuple[tuple[int, ...], tuple]:
@@ -280,10 +228,7 @@ class Integrator:
         not asked for), the traits are the loops' (:mod:`galerkin_vi.loops.traits`).
         Numba backend only; the points are compiled (or loaded) on first use.
         """
-        if self.backend != "numba":
-            raise ValueError("compiled point functions need the numba backend")
-        fn = tuple(int(address) for address in self._points.addresses(names))
-        return fn, loop_traits(self._summary)
+        return point_addresses(self.backend, lambda: self._points, lambda: self._summary, names)
 
     @property
     def uses_banded_storage(self) -> bool:
@@ -292,28 +237,15 @@ class Integrator:
 
     # ------------------------------------------------------------------- run
     def integrate(
-        self,
-        q0: ArrayLike,
-        v0: ArrayLike | None = None,
-        p0: ArrayLike | None = None,
-        *,
-        h: float,
-        n_steps: int | None = None,
-        t0: float = 0.0,
+        self, q0: ArrayLike, v0: ArrayLike | None = None, p0: ArrayLike | None = None, *,
+        h: float, n_steps: int | None = None, t0: float = 0.0,
         params: Mapping[sp.Symbol | str, float] | None = None,
-        save_every: int = 1,
-        project: bool = False,
-        on_failure: str = "warn",
-        dense_output: bool = False,
-        t_span: tuple[float, float] | None = None,
-        events: object = None,
-        progress: bool | None = None,
-        t_eval: ArrayLike | None = None,
-        contact_mode: str = "auto",
-        tangent: bool | ArrayLike | None = None,
-        sensitivity: Sequence[sp.Symbol | str] | None = None,
-        renormalize_every: int = 0,
-    ) -> Trajectory:
+        save_every: int = 1, project: bool = False, on_failure: str = "warn",
+        dense_output: bool = False, t_span: tuple[float, float] | None = None,
+        events: object = None, progress: bool | None = None, t_eval: ArrayLike | None = None,
+        contact_mode: str = "auto", tangent: bool | ArrayLike | None = None,
+        sensitivity: Sequence[sp.Symbol | str] | None = None, renormalize_every: int = 0,
+    ) -> Trajectory:  # fmt: skip
         """Integrate ``n_steps`` steps of size ``h`` from ``q0`` and ``v0`` or ``p0``.
 
         Parameters
@@ -434,41 +366,21 @@ class Integrator:
         A system with ``contacts`` runs through :mod:`galerkin_vi.contact`
         (impacts located and applied; ``Trajectory.impacts``).
         """
-        run = dict(
-            h=h, n_steps=n_steps, t0=t0, params=params, save_every=save_every, project=project,
-            on_failure=on_failure, dense_output=dense_output, t_span=t_span, events=events,
-            progress=progress, t_eval=t_eval,
+        return integrate_run(
+            self, q0, v0, p0, h=h, n_steps=n_steps, t0=t0, params=params, save_every=save_every,
+            project=project, on_failure=on_failure, dense_output=dense_output, t_span=t_span,
+            events=events, progress=progress, t_eval=t_eval, contact_mode=contact_mode,
+            tangent=tangent, sensitivity=sensitivity, renormalize_every=renormalize_every,
         )  # fmt: skip
-        request = variation_request(self.system, tangent, sensitivity, renormalize_every)
-        if self.system.contacts:
-            from .contact.runs import integrate_with_contacts
-
-            return integrate_with_contacts(
-                self, q0, v0, p0, contact_mode=contact_mode, variations=request, **run
-            )
-        if contact_mode != "auto":
-            raise ValueError(f"contact_mode={contact_mode!r} needs a system with contacts")
-        if request is not None:
-            return integrate_smooth(self.tangent_run_spec, q0, v0, p0, variations=request, **run)
-        return integrate_smooth(self.run_spec, q0, v0, p0, **run)
 
     def stream(
-        self,
-        q0: ArrayLike,
-        v0: ArrayLike | None = None,
-        p0: ArrayLike | None = None,
-        *,
-        h: float,
-        n_steps: int,
-        chunk_steps: int = 100_000,
-        t0: float = 0.0,
+        self, q0: ArrayLike, v0: ArrayLike | None = None, p0: ArrayLike | None = None, *,
+        h: float, n_steps: int, chunk_steps: int = 100_000, t0: float = 0.0,
         params: Mapping[sp.Symbol | str, float] | None = None,
-        save_every: int = 1,
-        project: bool = False,
-        on_failure: str = "warn",
+        save_every: int = 1, project: bool = False, on_failure: str = "warn",
         tangent: bool | ArrayLike | None = None,
         sensitivity: Sequence[sp.Symbol | str] | None = None,
-    ) -> Iterator[Trajectory]:
+    ) -> Iterator[Trajectory]:  # fmt: skip
         """:meth:`integrate` in chunks of ``chunk_steps`` steps, yielding each chunk.
 
         Memory stays bounded by one chunk however long the run: process each
@@ -512,26 +424,16 @@ class Integrator:
         ValueError
             For bad arguments, when ``stream`` is called.
         """
-        # validated here, when stream() is called, not at the first next()
-        check_stream_arguments(n_steps, chunk_steps, save_every, on_failure)
-        variation_request(self.system, tangent, sensitivity, 0)  # checked now, too
-        return stream_chunks(
-            self.integrate, q0, v0, p0, h=h, n_steps=int(n_steps), chunk_steps=int(chunk_steps),
-            t0=t0, params=params, save_every=save_every, project=project, on_failure=on_failure,
-            tangent=tangent, sensitivity=sensitivity,
+        return checked_stream(
+            self.integrate, self.system, q0, v0, p0, h=h, n_steps=n_steps,
+            chunk_steps=chunk_steps, t0=t0, params=params, save_every=save_every,
+            project=project, on_failure=on_failure, tangent=tangent, sensitivity=sensitivity,
         )  # fmt: skip
 
     def integrate_many(
-        self,
-        q0s: ArrayLike,
-        v0s: ArrayLike | None = None,
-        p0s: ArrayLike | None = None,
-        *,
-        params=None,
-        executor=None,
-        workers: int | None = None,
-        **run,
-    ):
+        self, q0s: ArrayLike, v0s: ArrayLike | None = None, p0s: ArrayLike | None = None, *,
+        params=None, executor=None, workers: int | None = None, **run,
+    ):  # fmt: skip
         """:meth:`integrate` for many initial states and/or parameter sets at once.
 
         Runs of one compiled call (at most
@@ -595,20 +497,4 @@ class Integrator:
         one Newton system in the interior points of step :math:`k-1` and all
         free control points of step :math:`k`. ``q0`` is at time ``t0``.
         """
-        system = self.system
-        if isinstance(self.method, Composition):
-            from .run.composed_del import composition_del_step
-
-            prm = system.parameter_vector(params)
-            return composition_del_step(self, q0, q1, h, t0, prm)
-        if system.m:
-            raise ValueError(
-                "step_del: the position-only DEL form has no multipliers, so it does not "
-                "apply to constrained systems; use integrate or step (position-momentum "
-                "form with multipliers)"
-            )
-        prm = system.parameter_vector(params)
-        return del_step(
-            system, self.method.tables, q0, q1, h, t0, prm, tol=self.tol, maxiter=self.maxiter
-        )
-
+        return position_step(self, q0, q1, h, t0, params)

@@ -11,11 +11,10 @@ import pytest
 import sympy as sp
 
 import galerkin_vi as gvi
-import galerkin_vi.integrator as integrator_module
 from galerkin_vi import problems
 from galerkin_vi.adaptive.integrator import landing_guess
 from galerkin_vi.problems import gravitation
-from galerkin_vi.run import segment
+from galerkin_vi.run import dispatch, segment
 from galerkin_vi.run.loop_choice import EARLY_HAND_OVER, PERSISTENT, hand_over
 
 GAUSS4 = gvi.Galerkin(4, gvi.gauss_legendre(4))
@@ -74,7 +73,7 @@ def test_the_adaptive_run_keeps_the_fixed_point_at_pericentre(kepler, g, monkeyp
     kept = adaptive.integrate(kepler.q0, kepler.v0, h=0.2, t_final=t_final, on_failure="raise")
     assert calls[0] == 0
     with monkeypatch.context() as patch:
-        patch.setattr(integrator_module, "hand_over", lambda *_, **__: EARLY_HAND_OVER)
+        patch.setattr(dispatch, "hand_over", lambda *_, **__: EARLY_HAND_OVER)
         early = gvi.AdaptiveIntegrator(kepler.system, GAUSS4, g=g, fixed_point=True)
         handed = early.integrate(kepler.q0, kepler.v0, h=0.2, t_final=t_final, on_failure="raise")
     assert calls[0] >= 2

@@ -83,7 +83,9 @@ def test_free_ends_take_their_natural_conditions():
     assert speed_free.success and speed_free.cost == pytest.approx(1.5, abs=1e-9)
     np.testing.assert_allclose(speed_free.controls[..., 0], 3 * (1 - speed_free.control_times),
                                rtol=0, atol=1e-6)  # fmt: skip
-    assert speed_free.trajectory.p[-1, 0] == pytest.approx(1.5, abs=1e-9)
+    # the controls are optimal to 1e-6 (above): the momentum they reach agrees to 2.5e-9
+    # (SciPy 1.17), 1e-10 with older SciPy
+    assert speed_free.trajectory.p[-1, 0] == pytest.approx(1.5, abs=1e-8)
     # to speed 1 from rest, wherever it gets: u = 1, cost 1/2, at q(1) = 1/2
     place_free = gvi.solve_optimal_control(system, method, [u], u**2 / 2, (0.0, 1.0), 8, [0.0],
                                            None, [0.0], [1.0], tol=1e-12)  # fmt: skip

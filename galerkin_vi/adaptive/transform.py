@@ -55,7 +55,8 @@ scalings tried (:math:`1`, :math:`\min M_{aa}`, :math:`\min M_{aa}/g(q_0)`,
 e = 0.9 (start at pericentre, Gauss(2)-(4), three periods) the final momenta agree with
 a hand-written Gauss kernel on the transformed Hamiltonian to 3e-15 .. 4e-13,
 against 3e-13 .. 1e-12 for :math:`c = 1` and 2e-12 .. 1e-11 for
-:math:`\min M_{aa}/g(q_0)` (``docs/design-notes.md``, "Adaptive steps: the fixed point and its chunks").
+:math:`\min M_{aa}/g(q_0)` (``docs/design-notes.md``, "Adaptive steps: the fixed point
+and its chunks").
 
 References: Hairer, Lubich & Wanner, *Geometric Numerical Integration*, 2nd ed.,
 Springer 2006, section VIII.2; Hairer, "Variable time step integration with

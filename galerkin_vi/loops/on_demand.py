@@ -293,9 +293,10 @@ def compile_in_background(dispatcher, sig: tuple) -> bool:
     request = pickle.dumps(
         (function.__module__, function.__qualname__, sig, function.__code__.co_filename, options)
     )
-    from ._jit import loop_cache_dir
+    from ..cache import cache_root
 
-    env = dict(os.environ, GALERKIN_VI_CACHE_DIR=str(loop_cache_dir().parent.parent))
+    # the generated module's folder is under the cache root as this process reads it now
+    env = dict(os.environ, GALERKIN_VI_CACHE_DIR=str(cache_root()))
     child = subprocess.Popen(
         [sys.executable, "-c", _CHILD],
         stdin=subprocess.PIPE,

@@ -105,9 +105,9 @@ class SeparableTables:
         last step (Lobatto's end, :math:`c_r - 1 = c_1 = 0`) is left out, its
         column zero. The first iterate's error is :math:`h^2` times that of the
         extrapolated forces, so with small steps the first sweep often leaves
-        the stage positions bit-identical (docs/design-notes.md, "The first iterate from two steps"); extrapolating
-        the position polynomial instead is off by :math:`O(h^{s+1})`: one sweep
-        more per step.
+        the stage positions bit-identical (docs/design-notes.md, "The first iterate
+        from two steps"); extrapolating the position polynomial instead is off by
+        :math:`O(h^{s+1})`: one sweep more per step.
     reuse_endpoint : bool
         The first point is :math:`q_k` and the last is :math:`q_{k+1}`
         (Lobatto quadrature, collocated ends), so the force at the end of one

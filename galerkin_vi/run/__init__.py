@@ -6,5 +6,7 @@ drivers that put them together (:mod:`.smooth`, :mod:`.stream`, :mod:`.ensemble`
 
 The front doors (:class:`~galerkin_vi.Integrator`, :class:`~galerkin_vi.AdaptiveIntegrator`)
 and the contact driver (:mod:`galerkin_vi.contact`) call these stages through their public
-functions.
+functions. :class:`~galerkin_vi.Integrator` checks its settings in :mod:`.options`, reads
+the system's point functions through :mod:`.points` and routes each call to its run spec
+and driver in :mod:`.dispatch`.
 """

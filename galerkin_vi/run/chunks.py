@@ -214,6 +214,8 @@ def _stitched(parts: list[Trajectory], t0: float, h: float) -> Trajectory:
         total_newton_iterations=sum(p.total_newton_iterations for p in parts),
         n_steps=sum(p.n_steps for p in parts),
         max_residual=max(p.max_residual for p in parts),
+        kernel_path=", then ".join(dict.fromkeys(p.kernel_path for p in parts if p.kernel_path))
+        or None,
     )
 
 

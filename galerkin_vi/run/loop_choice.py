@@ -88,9 +88,7 @@ def hand_over(fixed_point: bool | str, closed_form: bool = False) -> HandOver:
     raise ValueError(f"fixed_point must be True, False or 'persistent', got {fixed_point!r}")
 
 
-def composition_obstacle(
-    system: LagrangianSystem, method: Composition | None = None
-) -> str | None:
+def composition_obstacle(system: LagrangianSystem, method: Composition | None = None) -> str | None:
     r"""Why a :class:`~galerkin_vi.Composition` (``method``, or any) cannot run on
     ``system``, or None when it can.
 
@@ -174,7 +172,8 @@ def loop_path(
 
     ``"constrained"`` for every system with constraints (multipliers in the
     stage equations, momentum projected at each step's end; both backends).
-    Otherwise, with the compiled backend and ``specialize=True`` (default):
+    Otherwise, with the compiled backend and ``specialize`` true (``True``, ``"auto"``,
+    ``"system"``):
 
     - ``"explicit"``: degree 1 with two Lobatto points on a separable
       :math:`L = \tfrac12 v^TMv + a(t)\cdot v - V(t, q)` (constant :math:`M`) is

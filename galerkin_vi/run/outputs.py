@@ -31,6 +31,8 @@ class RunOutputs:
     iterations: NDArray[np.uint8]
     iteration_total: NDArray[np.int64]
     periodic: bool
+    #: whether the loop generated for the system wrote them (set by the run)
+    generated: bool = False
 
     @classmethod
     def allocate(cls, n_steps: int, save_every: int, n: int, periodic: bool) -> RunOutputs:
@@ -51,7 +53,7 @@ class RunOutputs:
         return self.t, self.q, self.p, self.turns
 
     def trajectory(
-        self, status, done, saved, worst, save_every, system, prm, order=None
+        self, status, done, saved, worst, save_every, system, prm, order=None, kernel_path=None
     ) -> Trajectory:
         """The saved rows as a :class:`Trajectory` (angles continued across turns)."""
         q_saved, q_reduced = self.q[:saved], None
@@ -71,6 +73,7 @@ class RunOutputs:
             system=system,
             params=prm,
             order=order,
+            kernel_path=kernel_path,
         )
 
 

@@ -17,6 +17,7 @@ from ..loops.abi import STATUS_NEWTON_FAILED, LoopResult
 from ..method.composition import VERLET_SUBSTEPS, Composition
 from ..reference import numpy as numpy_backend
 from ..reference import numpy_constrained
+from .generated_choice import choose_generated, kernel_path
 from .outputs import RunOutputs
 from .spec import RunSpec, Segment
 from .trajectory import Trajectory
@@ -37,7 +38,7 @@ def run_once(spec: RunSpec, segment: Segment) -> tuple[Trajectory, LoopResult]:
     result = run_segment(spec, segment, out)
     traj = out.trajectory(
         result.status, result.steps, result.saved, result.worst_residual, segment.save_every,
-        system, segment.prm, spec.order,
+        system, segment.prm, spec.order, kernel_path(spec.path, out.generated),
     )  # fmt: skip
     return traj, result
 
@@ -59,11 +60,17 @@ def run_segment(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     if spec.path == "explicit":
         return _explicit(spec, segment, out)
     loop, before, after = spec.loop_parts()
-    if spec.stage_steps is not None:
-        result = LoopResult(*spec.stage_steps(*segment.arguments, *after, *out.arrays, *counters))
+    steps = spec.stage_steps
+    if steps is not None:
+        arguments = (*segment.arguments, *after, *out.arrays, *counters)
+        if spec.stage_steps_when_compiled:
+            steps = choose_generated(steps, arguments, segment.n_steps)
+        out.generated = steps is not None
+    if steps is not None:
+        result = LoopResult(*steps(*arguments))
     else:
         result = LoopResult(*loop(*before, *segment.arguments, *after, *out.arrays, *counters))
-    if spec.path == "separable" and spec.stage_steps is not None:
+    if spec.path == "separable" and steps is not None:
         if result.status == STATUS_NEWTON_FAILED:
             # a step the constant-mass fixed point cannot take: the shared loop's Newton
             return continue_from_last_row(spec, segment, out, result, "separable")

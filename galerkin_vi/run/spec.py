@@ -102,6 +102,9 @@ class RunSpec:
         :mod:`galerkin_vi.codegen.velocity_steps`), which the explicit, separable and
         varying-mass paths run in place of the shared ones; None for every other
         system and path.
+    stage_steps_when_compiled : bool
+        ``specialize="auto"``: a run takes ``stage_steps`` only where it is compiled
+        already, else the shared loop (:mod:`galerkin_vi.run.generated_choice`).
     """
 
     system: LagrangianSystem
@@ -120,6 +123,7 @@ class RunSpec:
     hand_over: HandOver = EARLY_HAND_OVER
     explicit_steps: Any = None
     stage_steps: Any = None
+    stage_steps_when_compiled: bool = False
 
     @property
     def order(self) -> int:
@@ -277,7 +281,9 @@ def compiled_run_spec(
     Hessian too, for the explicit path's tangent map), ``hand_over`` the varying-mass
     loop's rule (:func:`galerkin_vi.run.loop_choice.hand_over`), ``specialize`` the
     integrator's: the explicit path runs the system's generated loop where it has one
-    unless it is False, the separable path only with ``"system"``."""
+    unless it is False, the varying-mass path only with ``"system"``, the separable path
+    with ``"system"``, or with ``"auto"`` where it is compiled
+    (:mod:`galerkin_vi.run.generated_choice`)."""
     velocity = bool(summary.explicit_velocity)
     names = point_function_names(path, summary.m, hessian, velocity)
     fn = tuple(int(address) for address in points.addresses(names))
@@ -293,7 +299,9 @@ def compiled_run_spec(
         # seconds, so only on request)
         steps = points.generated_loop("repeated_explicit_steps")
     # the generated stage-form loop iterates the constant-mass fixed point only
-    separable = path == "separable" and constant_mass and specialize == "system"
+    # "auto" takes only the generated loops that take the shared loop's steps bit for bit,
+    # so that a run's numbers never depend on whether the system's loop was compiled yet
+    separable = path == "separable" and constant_mass and specialize in ("system", "auto")
     stages = None
     if separable:
         stages = points.stage_loop(method.tables.b, method.tables.c, separable_tables(method))
@@ -305,5 +313,5 @@ def compiled_run_spec(
         diagonal_mass=bool(summary.diagonal_mass), autonomous=bool(summary.autonomous),
         couplings=couplings if any(couplings) else None, constant_mass=constant_mass,
         legendre=legendre, band=band, hand_over=hand_over, explicit_steps=steps,
-        stage_steps=stages,
+        stage_steps=stages, stage_steps_when_compiled=specialize == "auto",
     )  # fmt: skip

@@ -13,9 +13,10 @@ from ..errors import ConvergenceError
 from .chunks import carry_turns
 from .failures import check_failure_mode, failed_run
 from .outputs import without_first_row
+from .tangent import variation_request
 from .trajectory import Trajectory
 
-__all__ = ["check_stream_arguments", "stream_chunks"]
+__all__ = ["check_stream_arguments", "checked_stream", "stream_chunks"]
 
 
 def check_stream_arguments(n_steps, chunk_steps, save_every, on_failure) -> None:
@@ -36,6 +37,33 @@ def check_stream_arguments(n_steps, chunk_steps, save_every, on_failure) -> None
         )
     if isinstance(n_steps, bool) or not isinstance(n_steps, numbers.Integral) or n_steps < 0:
         raise ValueError(f"n_steps must be a non-negative int, got {n_steps!r}")
+
+
+def checked_stream(
+    integrate: Callable[..., Trajectory], system, q0: ArrayLike, v0, p0, *, h, n_steps,
+    chunk_steps, t0, params, save_every, project: bool, on_failure: str, tangent=None,
+    sensitivity=None,
+) -> Iterator[Trajectory]:  # fmt: skip
+    """:func:`stream_chunks` of :meth:`Integrator.stream`, its arguments checked first.
+
+    ``stream_chunks`` is a generator, whose body runs only at the first ``next()``;
+    checking here, when ``stream()`` is called, reports bad arguments at the call.
+    ``system`` is the integrator's, against which ``tangent`` and ``sensitivity`` are
+    checked.
+
+    Raises
+    ------
+    ValueError
+        For bad ``n_steps``, ``chunk_steps``, ``save_every``, ``on_failure``, ``tangent``
+        or ``sensitivity``.
+    """
+    check_stream_arguments(n_steps, chunk_steps, save_every, on_failure)
+    variation_request(system, tangent, sensitivity, 0)
+    return stream_chunks(
+        integrate, q0, v0, p0, h=h, n_steps=int(n_steps), chunk_steps=int(chunk_steps), t0=t0,
+        params=params, save_every=save_every, project=project, on_failure=on_failure,
+        tangent=tangent, sensitivity=sensitivity,
+    )  # fmt: skip
 
 
 def stream_chunks(

@@ -94,6 +94,7 @@ class Trajectory(SolverResult):
     impacts: list | None = None
     contact_forces: object | None = None
     variations: object | None = None
+    kernel_path: str | None = None
 
     def __len__(self) -> int:
         return self.t.shape[0]
