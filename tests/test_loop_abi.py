@@ -256,6 +256,7 @@ def test_compiling_installs_its_replacements_only_inside_and_restores_them():
             postproc.PostProcessor.run,
             ir.FunctionIR.get_block_entry_vars,
             inline_closurecall.InlineWorker.inline_ir,
+            inline_closurecall.InlineWorker.run_untyped_passes,
             inline_closurecall.copy,
         )
 
@@ -270,6 +271,46 @@ def test_compiling_installs_its_replacements_only_inside_and_restores_them():
     with pytest.raises(RuntimeError, match="boom"), loops.compiling():
         raise RuntimeError("boom")
     assert all(a is b for a, b in zip(before, current(), strict=True))
+
+
+def test_switch_tests_on_data_arguments_are_folded_before_typing():
+    # a switch that is data (an array, a tuple) is never None: its tests become constants
+    # and numba's dead branch pruning drops the None branch, as it does for a None switch
+    import operator
+
+    from numba import njit
+    from numba.core import compiler, ir, types
+
+    from galerkin_vi.loops._jit import _LOOP_COMPILER, _never_none, fold_switch_tests
+
+    def switched(pattern, couplings, n, m):
+        if pattern is not None:
+            n += 1
+        if None is couplings:
+            n += 2
+        if m is None:  # a scalar argument: also never None (n, reassigned: left alone)
+            n += 4
+        return n
+
+    args = (types.float64[:], types.none, types.int64, types.int64)
+    func_ir = compiler.run_frontend(switched)
+    assert fold_switch_tests(func_ir, args) == 2  # the test of None against None is numba's
+    tests = [
+        stmt.value
+        for block in func_ir.blocks.values()
+        for stmt in block.body
+        if isinstance(stmt, ir.Assign)
+        and isinstance(stmt.value, ir.Expr)
+        and stmt.value.op == "binop"
+        and stmt.value.fn in (operator.is_, operator.is_not)
+    ]
+    assert len(tests) == 1  # None is couplings: left to numba's own pruning
+    assert _never_none(types.UniTuple(types.int64, 4)) and not _never_none(types.none)
+    assert not _never_none(types.Optional(types.float64[:]))
+    compiled = njit(switched, pipeline_class=_LOOP_COMPILER)
+    assert compiled(np.zeros(1), None, 0, 0) == 3
+    assert compiled(np.zeros(1), (True, False), 0, 0) == 1
+    assert compiled(None, None, 0, 0) == 2
 
 
 def test_unreadable_loop_cache_files_are_discarded_when_the_loops_are_made_ready(warm_cache):

@@ -5,7 +5,9 @@ calls it, never compiled on its own: plain calls between compiled functions
 pay numba's reference counting at each call, a large share of a small
 system's step, which outweighs the longer compile time of inlined code.
 ``driver`` marks a loop's entry point: compiled once per machine and argument
-types and cached on disk by numba.
+types and cached on disk by numba, with numba's compiler plus one pass,
+:func:`fold_switch_tests`, that drops the branches of a switch that is data
+(:mod:`.traits`) before typing, as numba drops those of a switch that is ``None``.
 
 numba would cache a driver beside its source file, and judge staleness by that
 file alone; a driver inlines helpers from several modules, so an edit to one
@@ -18,7 +20,7 @@ is decorated or a system's point functions are loaded, so a user's own cached
 functions never meet them.
 
 :func:`compiling` makes numba's compiler faster on the loops' large inlined IR
-(two replacements of numba's internals). It is a context manager, entered only
+(three replacements of numba's internals). It is a context manager, entered only
 while the package compiles its own loops (the warm-up processes of
 :mod:`galerkin_vi.tools.warmup`): importing the package leaves numba as it is,
 and the user's own numba code never compiles through these replacements.
@@ -207,6 +209,7 @@ class _Originals:
     inliner_copy: object
     postproc_run: object
     get_block_entry_vars: object
+    run_untyped_passes: object
 
 
 def _shared_memo_inline_ir(inline_ir, state):
@@ -221,6 +224,30 @@ def _shared_memo_inline_ir(inline_ir, state):
             state.memo = outer
 
     return shared_memo_inline_ir
+
+
+def _memo_untyped_passes(run_untyped_passes):
+    """``InlineWorker.run_untyped_passes`` remembering each helper's IR for the block.
+
+    numba's inliner builds a helper's IR anew (bytecode, untyped passes and the inlining
+    of the helper's own helpers) at every call site, although it depends only on the
+    function and the compiler's flags and locals; ``inline_ir`` copies it before it
+    changes anything. Here it is built once per helper and :func:`compiling` block.
+    """
+    memo = {}
+
+    def memo_run_untyped_passes(self, func, enable_ssa=False):
+        self.flags.enable_ssa = enable_ssa  # as numba's does, on the caller's flags
+        try:
+            key = (func, self.flags.copy(), frozenset(self.locals.items()), self.pipeline)
+            hash(key)
+        except TypeError:
+            return run_untyped_passes(self, func, enable_ssa)
+        if key not in memo:
+            memo[key] = run_untyped_passes(self, func, enable_ssa)
+        return memo[key]
+
+    return memo_run_untyped_passes
 
 
 def _lean_postproc(run, get):
@@ -271,9 +298,16 @@ def _numba_originals() -> _Originals | None:
         inliner_copy=getattr(inline_closurecall, "copy", None),
         postproc_run=getattr(postproc.PostProcessor, "run", None),
         get_block_entry_vars=getattr(ir.FunctionIR, "get_block_entry_vars", None),
+        run_untyped_passes=getattr(worker, "run_untyped_passes", None),
     )
     if (
-        None in (originals.inline_ir, originals.postproc_run, originals.get_block_entry_vars)
+        None
+        in (
+            originals.inline_ir,
+            originals.postproc_run,
+            originals.get_block_entry_vars,
+            originals.run_untyped_passes,
+        )
         or originals.inliner_copy is not copy
     ):
         return None
@@ -288,6 +322,9 @@ def _install(originals: _Originals) -> None:
     state = threading.local()
     inline_closurecall.copy = _SharedMemoCopy(copy, state)
     inline_closurecall.InlineWorker.inline_ir = _shared_memo_inline_ir(originals.inline_ir, state)
+    inline_closurecall.InlineWorker.run_untyped_passes = _memo_untyped_passes(
+        originals.run_untyped_passes
+    )
     run, get = _lean_postproc(originals.postproc_run, originals.get_block_entry_vars)
     postproc.PostProcessor.run = run
     ir.FunctionIR.get_block_entry_vars = get
@@ -298,6 +335,7 @@ def _restore(originals: _Originals) -> None:
 
     inline_closurecall.copy = originals.inliner_copy
     inline_closurecall.InlineWorker.inline_ir = originals.inline_ir
+    inline_closurecall.InlineWorker.run_untyped_passes = originals.run_untyped_passes
     postproc.PostProcessor.run = originals.postproc_run
     ir.FunctionIR.get_block_entry_vars = originals.get_block_entry_vars
 
@@ -311,7 +349,8 @@ _installed: _Originals | None = None
 def compiling() -> Iterator[None]:
     """Compile the loops with the faster inliner and post-processor, numba's own after.
 
-    Inside the ``with`` block numba's IR inliner copies each callee's variable
+    Inside the ``with`` block numba's IR inliner builds each helper's IR once
+    (:func:`_memo_untyped_passes`, not once per call site), copies each callee's variable
     scope once per inlining (:class:`_SharedMemoCopy`) and its post-processor
     computes block-entry liveness only on demand (:func:`_lean_postproc`), work
     that grows with the size of the inlined IR (docs/design-notes.md,
@@ -343,7 +382,98 @@ kernel = njit(inline="always", error_model="numpy", cache=False)
 # helpers of scalars only: ordinary calls, which LLVM inlines (no reference counts to
 # pay), so that numba's IR inliner does not copy them into every call site
 scalar = njit(error_model="numpy", cache=False)
-_DRIVER = njit(cache=True, error_model="numpy", nogil=True)
+
+
+def _never_none(typ) -> bool:
+    """Whether an argument of numba type ``typ`` can never be ``None`` (a switch that is data)."""
+    from numba.core import types
+
+    return isinstance(typ, (types.Array, types.BaseTuple, types.Number, types.Boolean))
+
+
+def fold_switch_tests(func_ir, arg_types) -> int:
+    """Rewrite ``x is None`` and ``x is not None`` into constants where ``x`` is a driver
+    argument of a type that is never None; the number of tests rewritten.
+
+    numba's dead branch pruning decides these tests only for arguments typed ``None``
+    (:mod:`.traits`: ``pattern``, ``mass_diagonal``, ... of a variant where they are
+    absent); where the switch is an array the test stays, and the branch for ``None``
+    with everything inlined into it (the dense LU solve of a variant with a diagonal
+    mass, the dense block assembly of a banded one) is typed and lowered, for LLVM to
+    delete. As constants, numba's next pruning pass drops those branches before typing.
+    """
+    import operator
+
+    from numba.core import ir
+    from numba.core.ir_utils import get_definition, guard
+
+    if not arg_types:
+        return 0
+
+    def side(var):
+        found = guard(get_definition, func_ir, var)
+        if isinstance(found, ir.Const) and found.value is None:
+            return "none"
+        if isinstance(found, ir.Arg) and found.index < len(arg_types):
+            if _never_none(arg_types[found.index]):
+                return "data"
+        return None
+
+    folded = 0
+    for block in func_ir.blocks.values():
+        for stmt in block.body:
+            if not (isinstance(stmt, ir.Assign) and isinstance(stmt.value, ir.Expr)):
+                continue
+            expr = stmt.value
+            if expr.op != "binop" or expr.fn not in (operator.is_, operator.is_not):
+                continue
+            if {side(expr.lhs), side(expr.rhs)} != {"none", "data"}:
+                continue
+            const = ir.Const(expr.fn is operator.is_not, loc=expr.loc)
+            definitions = func_ir._definitions[stmt.target.name]
+            if expr in definitions:
+                definitions[definitions.index(expr)] = const
+            stmt.value = const
+            folded += 1
+    return folded
+
+
+def _loop_compiler():
+    """numba's compiler with :func:`fold_switch_tests` before each dead branch pruning."""
+    from numba.core.compiler import CompilerBase, DefaultPassBuilder
+    from numba.core.compiler_machinery import FunctionPass, register_pass
+    from numba.core.untyped_passes import DeadBranchPrune
+
+    @register_pass(mutates_CFG=False, analysis_only=False)
+    class FoldSwitchTests(FunctionPass):
+        _name = "galerkin_vi_fold_switch_tests"
+
+        def __init__(self):
+            FunctionPass.__init__(self)
+
+        def run_pass(self, state):
+            return fold_switch_tests(state.func_ir, state.args) > 0
+
+    class LoopCompiler(CompilerBase):
+        def define_pipelines(self):
+            pm = DefaultPassBuilder.define_nopython_pipeline(self.state)
+            if not self.state.flags.force_pyobject:
+                passes = []
+                for each in pm.passes:
+                    if each[0] is DeadBranchPrune:
+                        passes.append((FoldSwitchTests, "fold the tests of switches"))
+                    passes.append(each)
+                pm.passes[:] = passes
+                pm.finalize()
+            else:  # pragma: no cover - the drivers are nopython
+                pm = DefaultPassBuilder.define_objectmode_pipeline(self.state)
+            return [pm]
+
+    return LoopCompiler
+
+
+_LOOP_COMPILER = _loop_compiler()
+_DRIVER = njit(cache=True, error_model="numpy", nogil=True, pipeline_class=_LOOP_COMPILER)
 
 
 def driver(function):
