@@ -64,9 +64,22 @@ COMPILE_CHILD = "GALERKIN_VI_WARMUP_CHILD"
 #: the variant a compile child was started for (its parent holds that variant's lock)
 _TARGET = "GALERKIN_VI_COMPILE_TARGET"
 
-#: measured seconds to compile each driver's largest variant alone on a 2-core machine
-#: (``python benchmarks/compile_time.py``); the message's estimate
-COMPILE_SECONDS: dict[str, float] = {}
+#: measured seconds to compile each driver's variants alone on the 2-core machine, the
+#: largest (``python benchmarks/compile_time.py``, docs/performance.md); the message's
+#: estimate
+COMPILE_SECONDS: dict[str, float] = {
+    "stage_form_loop": 15.0,
+    "general_loop": 7.0,
+    "linear_loop": 7.0,
+    "constrained_loop": 12.0,
+    "explicit_loop": 2.0,
+    "varying_mass_loop": 6.0,
+    "tangent_loop": 25.0,
+    "adjoint_sweep": 10.0,
+    "constrained_tangent_loop": 20.0,
+    "explicit_tangent_loop": 7.0,
+    "stationary_path": 15.0,
+}
 
 _messages = os.environ.get("GALERKIN_VI_QUIET", "") in ("", "0")
 
