@@ -288,12 +288,13 @@ _BACKGROUND: dict[tuple, subprocess.Popen] = {}
 
 
 def compile_in_background(dispatcher, sig: tuple) -> bool:
-    """Start compiling ``dispatcher`` (a function of a generated module) for ``sig`` in a
-    child process that this one does not wait for; its result lands in the disk cache.
+    """Start compiling ``dispatcher`` for ``sig`` in a child process that this one does
+    not wait for; its result lands in the disk cache.
 
-    At most one child per variant and process (a failed one is not retried); returns
-    False when one was started before. The child takes the variant's lock, so processes
-    that ask at once compile it once.
+    ``dispatcher`` is a loop driver (:class:`LoopDispatcher`) or a function of a
+    generated module (a system's own loop). At most one child per variant and process
+    (a failed one is not retried); returns False when one was started before. The
+    child takes the variant's lock, so processes that ask at once compile it once.
     """
     for child in _BACKGROUND.values():
         child.poll()  # reaps a finished child
@@ -301,15 +302,27 @@ def compile_in_background(dispatcher, sig: tuple) -> bool:
     if key in _BACKGROUND:
         return False
     function = dispatcher.py_func
-    options = {k: v for k, v in dispatcher.targetoptions.items() if k != "nopython"}
-    options.update(nopython=True, cache=True)
-    request = pickle.dumps(
-        (function.__module__, function.__qualname__, sig, function.__code__.co_filename, options)
-    )
     from ..cache import cache_root
 
-    # the generated module's folder is under the cache root as this process reads it now
-    env = dict(os.environ, GALERKIN_VI_CACHE_DIR=str(cache_root()))
+    if isinstance(dispatcher, LoopDispatcher):
+        from ._jit import loop_cache_dir
+
+        request = pickle.dumps((function.__module__, function.__qualname__, sig))
+        # a compiling process that takes the variant's lock itself (no target: nobody
+        # holds it for the child)
+        env = dict(
+            os.environ,
+            GALERKIN_VI_CACHE_DIR=str(loop_cache_dir().parent.parent),
+            **{COMPILE_CHILD: "1"},
+        )
+        env.pop(_TARGET, None)
+    else:
+        options = {k: v for k, v in dispatcher.targetoptions.items() if k != "nopython"}
+        options.update(nopython=True, cache=True)
+        file = function.__code__.co_filename
+        request = pickle.dumps((function.__module__, function.__qualname__, sig, file, options))
+        # the generated module's folder is under the cache root as this process reads it now
+        env = dict(os.environ, GALERKIN_VI_CACHE_DIR=str(cache_root()))
     child = subprocess.Popen(
         [sys.executable, "-c", _CHILD],
         stdin=subprocess.PIPE,

@@ -41,6 +41,10 @@ LONG_RUN_STEPS = 100_000
 
 #: the runs of each generated loop in this process, by its dispatcher's identity
 _RUNS: Counter = Counter()
+#: the generated loops compiled or loaded in this process (they stay so)
+_READY: set[int] = set()
+#: each generated loop's argument types, and its shared loop's
+_SIGNATURES: dict[int, tuple] = {}
 
 
 def runs_of(steps) -> int:
@@ -48,23 +52,56 @@ def runs_of(steps) -> int:
     return _RUNS[id(steps)]
 
 
-def choose_generated(steps, arguments: Sequence, n_steps: int) -> Callable | None:
+def choose_generated(
+    steps, arguments: Sequence, n_steps: int, shared=None, shared_arguments: Sequence = ()
+) -> Callable | None:
     """The generated loop ``steps`` if it is compiled for ``arguments``, else None.
 
     Counts the run; when the loop is not compiled and the system is run again or
-    the run is long (module docstring), starts its compile in the background.
+    the run is long (module docstring), starts its compile in the background. On a
+    machine where the shared loop ``shared`` is not compiled for ``shared_arguments``
+    either, the run has to wait for a compiler anyway: it compiles the system's own
+    loop here, a few seconds where the shared loop takes ten, and the shared loop in
+    the background (the loop the next systems and methods run, and the one a step
+    that needs Newton hands over to).
     """
     from numba import typeof
 
     from ..loops.on_demand import compile_in_background, is_cached
 
     _RUNS[id(steps)] += 1
-    signature = tuple(typeof(a) for a in arguments)
-    if is_cached(steps, signature):
+    if id(steps) in _READY:
         return steps
+    # the argument types of a spec's runs do not change: typed once (numba's typeof
+    # costs about 20 us an array, a large share of a short run's fixed cost)
+    signature, shared_signature = _SIGNATURES.get(id(steps), (None, None))
+    if signature is None:
+        signature = tuple(typeof(a) for a in arguments)
+        shared_signature = tuple(typeof(a) for a in shared_arguments)
+        _SIGNATURES[id(steps)] = signature, shared_signature
+    if is_cached(steps, signature):
+        _READY.add(id(steps))
+        return steps
+    if shared is not None:
+        if not is_cached(shared, shared_signature):
+            compile_in_background(shared, shared_signature)
+            _compiling_message(steps)
+            return steps
     if _RUNS[id(steps)] >= 2 or n_steps >= LONG_RUN_STEPS:
         compile_in_background(steps, signature)
     return None
+
+
+def _compiling_message(steps) -> None:
+    from ..loops import on_demand
+
+    if on_demand.messages_on():
+        import sys
+
+        sys.stderr.write(
+            f"galerkin_vi: compiling the loop {steps.py_func.__name__} of this system and "
+            "method, about 2 s (once for this machine; the shared loops in the background)\n"
+        )
 
 
 def kernel_path(path: str, generated: bool) -> str:

@@ -64,7 +64,8 @@ def run_segment(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     if steps is not None:
         arguments = (*segment.arguments, *after, *out.arrays, *counters)
         if spec.stage_steps_when_compiled:
-            steps = choose_generated(steps, arguments, segment.n_steps)
+            shared = (*before, *segment.arguments, *after, *out.arrays, *counters)
+            steps = choose_generated(steps, arguments, segment.n_steps, loop, shared)
         out.generated = steps is not None
     if steps is not None:
         result = LoopResult(*steps(*arguments))
