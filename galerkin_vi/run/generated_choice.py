@@ -67,7 +67,7 @@ def choose_generated(
     """
     from numba import typeof
 
-    from ..loops.on_demand import compile_in_background, is_cached
+    from ..loops.on_demand import compile_in_background, is_cached, variant_lock
 
     _RUNS[id(steps)] += 1
     if id(steps) in _READY:
@@ -85,7 +85,13 @@ def choose_generated(
     if shared is not None:
         if not is_cached(shared, shared_signature):
             compile_in_background(shared, shared_signature)
-            _compiling_message(steps)
+            # under the variant's lock: processes that start together compile it once,
+            # the others load it
+            with variant_lock(steps, signature):
+                if not is_cached(steps, signature):
+                    _compiling_message(steps)
+                steps.compile(signature)
+            _READY.add(id(steps))
             return steps
     if _RUNS[id(steps)] >= 2 or n_steps >= LONG_RUN_STEPS:
         compile_in_background(steps, signature)
