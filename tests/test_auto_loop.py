@@ -143,3 +143,16 @@ def test_a_fresh_process_takes_the_loop_the_cache_holds(warm_cache):
 
     assert paths() == ["separable", "separable"]  # the second started the compile
     assert paths() == ["separable:system", "separable:system"]  # deterministic from the cache
+
+
+def test_background_compiles_run_one_at_a_time_and_all_finish(own_cache):
+    integrators = [gvi.Integrator(_pendulum(s), gvi.Galerkin(2)) for s in (3.0, 3.5, 4.0)]
+    for integrator in integrators:
+        for _ in range(2):  # run again: each asks for its loop
+            integrator.integrate([1.0], [0.0], h=0.05, n_steps=20)
+        running = [c for c in on_demand._BACKGROUND.values() if c is not None and c.poll() is None]
+        assert len(running) <= 1
+    on_demand.wait_for_background(timeout=600)
+    assert not on_demand._PENDING
+    paths = [i.integrate([1.0], [0.0], h=0.05, n_steps=20).kernel_path for i in integrators]
+    assert paths == ["separable:system"] * 3

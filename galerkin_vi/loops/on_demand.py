@@ -55,6 +55,7 @@ __all__ = [
     "is_cached",
     "messages_on",
     "set_messages",
+    "start_next_background",
     "variant_lock",
     "wait_for_background",
 ]
@@ -284,7 +285,11 @@ def compile_request(stream) -> int:
     return 0
 
 
-_BACKGROUND: dict[tuple, subprocess.Popen] = {}
+#: the background compiles asked for, by (dispatcher, signature): their child, or None
+#: while waiting
+_BACKGROUND: dict[tuple, subprocess.Popen | None] = {}
+#: the requests waiting for the running child to finish
+_PENDING: list[tuple] = []
 
 
 def compile_in_background(dispatcher, sig: tuple) -> bool:
@@ -296,8 +301,7 @@ def compile_in_background(dispatcher, sig: tuple) -> bool:
     (a failed one is not retried); returns False when one was started before. The
     child takes the variant's lock, so processes that ask at once compile it once.
     """
-    for child in _BACKGROUND.values():
-        child.poll()  # reaps a finished child
+    start_next_background()  # reaps a finished child, starts a waiting one
     key = (id(dispatcher), sig)
     if key in _BACKGROUND:
         return False
@@ -323,6 +327,19 @@ def compile_in_background(dispatcher, sig: tuple) -> bool:
         request = pickle.dumps((function.__module__, function.__qualname__, sig, file, options))
         # the generated module's folder is under the cache root as this process reads it now
         env = dict(os.environ, GALERKIN_VI_CACHE_DIR=str(cache_root()))
+    _BACKGROUND[key] = None
+    _PENDING.append((key, request, env))
+    start_next_background()
+    return True
+
+
+def start_next_background() -> None:
+    """Start the next waiting background compile unless one is running: one at a time, so
+    that a job that runs many systems (``galerkin-vi verify``) never floods the cores."""
+    running = [c for c in _BACKGROUND.values() if c is not None and c.poll() is None]
+    if running or not _PENDING:
+        return
+    key, request, env = _PENDING.pop(0)
     child = subprocess.Popen(
         [sys.executable, "-c", _CHILD],
         stdin=subprocess.PIPE,
@@ -333,10 +350,14 @@ def compile_in_background(dispatcher, sig: tuple) -> bool:
     child.stdin.write(request)
     child.stdin.close()
     _BACKGROUND[key] = child
-    return True
 
 
 def wait_for_background(timeout: float | None = None) -> None:
-    """Wait for the background compilations this process started (tests, benchmarks)."""
-    for child in list(_BACKGROUND.values()):
-        child.wait(timeout)
+    """Wait for the background compilations this process asked for (tests, benchmarks)."""
+    while True:
+        running = [c for c in _BACKGROUND.values() if c is not None and c.poll() is None]
+        for child in running:
+            child.wait(timeout)
+        if not _PENDING:
+            return
+        start_next_background()

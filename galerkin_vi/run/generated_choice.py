@@ -67,9 +67,15 @@ def choose_generated(
     """
     from numba import typeof
 
-    from ..loops.on_demand import compile_in_background, is_cached, variant_lock
+    from ..loops.on_demand import (
+        compile_in_background,
+        is_cached,
+        start_next_background,
+        variant_lock,
+    )
 
     _RUNS[id(steps)] += 1
+    start_next_background()  # a queued background compile, when the last one has ended
     if id(steps) in _READY:
         return steps
     # the argument types of a spec's runs do not change: typed once (numba's typeof
