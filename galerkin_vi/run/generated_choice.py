@@ -19,7 +19,13 @@ worth it:
   (a second ``integrate``, a parameter sweep, the members of an ensemble);
 - or a long run: at least :data:`LONG_RUN_STEPS` steps.
 
-A short first run (fewer than :data:`LONG_RUN_STEPS` steps) never starts it. Which
+A short first run (fewer than :data:`LONG_RUN_STEPS` steps) never starts it. Background
+compiles run one at a time (:func:`galerkin_vi.loops.on_demand.compile_in_background`).
+
+On a machine where the shared loop is not compiled either, a first run has to wait for
+a compiler anyway: it compiles the system's own loop (about 2 s for a pendulum, under
+the variant's lock) where the shared one would take ten, and the shared one in the
+background, for the next systems and for a step that needs Newton. Which
 loop ran is the trajectory's ``kernel_path`` (``"separable"`` or
 ``"separable:system"``; :func:`kernel_path`); both take the same steps bit for bit
 up to a step that needs Newton, where the system's loop hands the rest of the run
