@@ -72,7 +72,14 @@ def warm_cache(tmp_path):
 
 
 def pytest_configure(config):
-    """Compile the loops once, in the main process, before xdist starts its workers."""
+    """Compile the loops once, in the main process, before xdist starts its workers.
+
+    Runs start no background compiles of the loops generated for their systems
+    (``GALERKIN_VI_BACKGROUND=0``, inherited by the workers and their subprocesses): a
+    session runs hundreds of systems twice, and would compile a loop for each on the
+    cores the tests run on; tests/test_auto_loop.py turns them on where it tests them.
+    """
+    os.environ["GALERKIN_VI_BACKGROUND"] = "0"
     if not hasattr(config, "workerinput"):
         from galerkin_vi.loops.readiness import ensure_all_loops
 

@@ -24,6 +24,12 @@ from galerkin_vi.run import generated_choice
 q, v = sp.symbols("q v")
 
 
+@pytest.fixture(autouse=True)
+def background_compiles(monkeypatch):
+    """The default of a user's process (the test session turns them off)."""
+    monkeypatch.setenv("GALERKIN_VI_BACKGROUND", "1")
+
+
 @pytest.fixture
 def own_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("GALERKIN_VI_CACHE_DIR", str(tmp_path))
@@ -135,6 +141,7 @@ def test_a_fresh_process_takes_the_loop_the_cache_holds(warm_cache):
         """
     )
     env = dict(os.environ, GALERKIN_VI_CACHE_DIR=str(warm_cache), GALERKIN_VI_QUIET="1")
+    env["GALERKIN_VI_BACKGROUND"] = "1"
 
     def paths():
         done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
@@ -156,3 +163,12 @@ def test_background_compiles_run_one_at_a_time_and_all_finish(own_cache):
     assert not on_demand._PENDING
     paths = [i.integrate([1.0], [0.0], h=0.05, n_steps=20).kernel_path for i in integrators]
     assert paths == ["separable:system"] * 3
+
+
+def test_background_compiles_can_be_turned_off(own_cache, monkeypatch):
+    monkeypatch.setenv("GALERKIN_VI_BACKGROUND", "0")
+    integrator = gvi.Integrator(_pendulum(4.5), gvi.Galerkin(2))
+    paths = [integrator.integrate([1.0], [0.0], h=0.05, n_steps=20).kernel_path for _ in range(3)]
+    on_demand.wait_for_background(timeout=300)
+    paths.append(integrator.integrate([1.0], [0.0], h=0.05, n_steps=20).kernel_path)
+    assert paths == ["separable"] * 4

@@ -211,7 +211,7 @@ def test_the_first_pendulum_run_compiles_its_own_loop_and_the_shared_one_behind_
     # on an empty cache the run waits for the stage-form loop written for its system and
     # method (seconds), while a child compiles the shared stage-form loop (ten seconds)
     # for the systems after it; nothing else is compiled
-    env = dict(os.environ, GALERKIN_VI_CACHE_DIR=str(tmp_path))
+    env = dict(os.environ, GALERKIN_VI_CACHE_DIR=str(tmp_path), GALERKIN_VI_BACKGROUND="1")
     env.pop("GALERKIN_VI_WARMUP_CHILD", None)
     env.pop("GALERKIN_VI_QUIET", None)
     command = [sys.executable, "-c", _PENDULUM]

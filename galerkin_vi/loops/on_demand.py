@@ -48,6 +48,7 @@ except ImportError:  # pragma: no cover - Windows
 __all__ = [
     "COMPILE_CHILD",
     "COMPILE_SECONDS",
+    "background_compiles",
     "LoopDispatcher",
     "compile_in_background",
     "compile_in_child",
@@ -90,6 +91,12 @@ def set_messages(on: bool) -> bool:
     global _messages
     previous, _messages = _messages, bool(on)
     return previous
+
+
+def background_compiles() -> bool:
+    """Whether runs may start compiles in the background (``GALERKIN_VI_BACKGROUND=0``
+    turns them off: batch jobs without a spare core, test sessions)."""
+    return os.environ.get("GALERKIN_VI_BACKGROUND", "") not in ("0", "false", "no")
 
 
 def messages_on() -> bool:
@@ -302,6 +309,8 @@ def compile_in_background(dispatcher, sig: tuple) -> bool:
     child takes the variant's lock, so processes that ask at once compile it once.
     """
     start_next_background()  # reaps a finished child, starts a waiting one
+    if not background_compiles():
+        return False
     key = (id(dispatcher), sig)
     if key in _BACKGROUND:
         return False

@@ -20,7 +20,9 @@ worth it:
 - or a long run: at least :data:`LONG_RUN_STEPS` steps.
 
 A short first run (fewer than :data:`LONG_RUN_STEPS` steps) never starts it. Background
-compiles run one at a time (:func:`galerkin_vi.loops.on_demand.compile_in_background`).
+compiles run one at a time (:func:`galerkin_vi.loops.on_demand.compile_in_background`);
+``GALERKIN_VI_BACKGROUND=0`` turns them off (a run then takes the system's loop only where
+something else compiled it: ``specialize="system"``, ``galerkin-vi warmup`` does not).
 
 On a machine where the shared loop is not compiled either, a first run has to wait for
 a compiler anyway: it compiles the system's own loop (about 2 s for a pendulum, under
