@@ -60,17 +60,14 @@ def run_segment(spec: RunSpec, segment: Segment, out: RunOutputs) -> LoopResult:
     if spec.path == "explicit":
         return _explicit(spec, segment, out)
     loop, before, after = spec.loop_parts()
+    shared = (*before, *segment.arguments, *after, *out.arrays, *counters)
+    # the generated loop takes the shared loop's arguments less its work space (before)
+    arguments = shared[len(before) :]
     steps = spec.stage_steps
-    if steps is not None:
-        arguments = (*segment.arguments, *after, *out.arrays, *counters)
-        if spec.stage_steps_when_compiled:
-            shared = (*before, *segment.arguments, *after, *out.arrays, *counters)
-            steps = choose_generated(steps, arguments, segment.n_steps, loop, shared)
-        out.generated = steps is not None
-    if steps is not None:
-        result = LoopResult(*steps(*arguments))
-    else:
-        result = LoopResult(*loop(*before, *segment.arguments, *after, *out.arrays, *counters))
+    if steps is not None and spec.stage_steps_when_compiled:
+        steps = choose_generated(steps, arguments, segment.n_steps, loop, shared)
+    out.generated = steps is not None
+    result = LoopResult(*(steps(*arguments) if steps is not None else loop(*shared)))
     if spec.path == "separable" and steps is not None:
         if result.status == STATUS_NEWTON_FAILED:
             # a step the constant-mass fixed point cannot take: the shared loop's Newton
