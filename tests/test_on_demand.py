@@ -23,7 +23,7 @@ from galerkin_vi.loops import on_demand
 
 _MODULE = """
 import os
-from galerkin_vi.loops._jit import driver
+from galerkin_vi.loops.on_demand import driver
 
 if os.environ.get("GALERKIN_VI_WARMUP_CHILD"):
     with open(os.environ["TINY_LOG"], "a") as log:

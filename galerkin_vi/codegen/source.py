@@ -118,9 +118,7 @@ def shared_reciprocals(
     symbols = {symbol for symbol, _ in roots}
 
     def inverse(z: sp.Basic) -> bool:
-        return bool(
-            z.is_Pow and z.base in symbols and z.exp.is_Integer and z.exp.is_negative
-        )
+        return bool(z.is_Pow and z.base in symbols and z.exp.is_Integer and z.exp.is_negative)
 
     def rewrite(z: sp.Pow) -> sp.Expr:
         if z.base not in reciprocals:
@@ -206,9 +204,7 @@ def _scattered_entries(group: ScatterGroup, arrays: tuple[str, ...]) -> list[int
     return [e for e, (array, _) in enumerate(group.entries) if array in arrays]
 
 
-def _touched(
-    groups: tuple[ScatterGroup, ...], arrays: tuple[str, ...]
-) -> dict[str, np.ndarray]:
+def _touched(groups: tuple[ScatterGroup, ...], arrays: tuple[str, ...]) -> dict[str, np.ndarray]:
     """Per array, the sorted slots some scatter loop adds into."""
     out: dict[str, list[np.ndarray]] = {}
     for group in groups:
@@ -437,9 +433,7 @@ def _constraint_functions(spec: KernelSpec) -> list[str]:
         ("point_constraint_hessian", spec.constraint_hessian_entries),
     )
     return [
-        line
-        for name, entries in parts
-        for line in _point_function(name, list(entries), False)[0]
+        line for name, entries in parts for line in _point_function(name, list(entries), False)[0]
     ]
 
 
@@ -536,9 +530,7 @@ def render_module(spec: KernelSpec, key: str) -> str:
     if spec.velocity_entries and not large and spec.n <= METHOD_UNROLLED:
         # what a velocity-stage loop generated per method (:mod:`.velocity_steps`) is
         # written from: the closed-form velocity and the force of the first step
-        velocity = scalar_lines(
-            functions[4][0][3:], {"V": "V", "F": "F"}, {"q": "q", "p": "p"}
-        )
+        velocity = scalar_lines(functions[4][0][3:], {"V": "V", "F": "F"}, {"q": "q", "p": "p"})
         force = scalar_lines(functions[3][0][3:], {"Lq": "F"}, {"q": "q", "v": "v"})
         steps += ["", "", *velocity_text_lines(velocity, force, spec.n, spec.periodic)]
     if spec.generated_loops:

@@ -360,9 +360,7 @@ def _scatter_groups(system: LagrangianSystem, rename: dict, position: dict | Non
             return None
         groups.append(scattered)
     forces = None if system.forces is None else list(system.forces)
-    rest = without_point_masses(
-        pointwise_pieces(remainder, list(system.q), list(system.v), forces)
-    )
+    rest = without_point_masses(pointwise_pieces(remainder, list(system.q), list(system.v), forces))
     if position is not None:
         stored = (rest.force_q, rest.Lqv, rest.Lvv) + ((rest.fv,) if rest.fv is not None else ())
         if any(key not in position for block in stored for key in block.todok()):

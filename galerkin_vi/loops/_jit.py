@@ -4,8 +4,9 @@
 calls it, never compiled on its own: plain calls between compiled functions
 pay numba's reference counting at each call, a large share of a small
 system's step, which outweighs the longer compile time of inlined code.
-``driver`` marks a loop's entry point: compiled once per machine and argument
-types and cached on disk by numba, with numba's compiler plus one pass,
+:func:`driver_dispatcher` makes a loop's entry point (:func:`.on_demand.driver` the
+decorator): compiled once per machine and argument types and cached on disk by
+numba, with numba's compiler plus one pass,
 :func:`fold_switch_tests`, that drops the branches of a switch that is data
 (:mod:`.traits`) before typing, as numba drops those of a switch that is ``None``.
 
@@ -50,7 +51,7 @@ __all__ = [
     "cache_locators",
     "compiling",
     "discard_unreadable_loops",
-    "driver",
+    "driver_dispatcher",
     "kernel",
     "loop_cache_dir",
     "scalar",
@@ -476,16 +477,9 @@ _LOOP_COMPILER = _loop_compiler()
 _DRIVER = njit(cache=True, error_model="numpy", nogil=True, pipeline_class=_LOOP_COMPILER)
 
 
-def driver(function):
-    """A loop's entry point: numba-compiled with ``nogil``, cached under the cache root.
-
-    Each variant (tuple of argument types) is compiled at its first use, by a child
-    process, once per machine (:class:`galerkin_vi.loops.on_demand.LoopDispatcher`).
-    """
-    from .on_demand import LoopDispatcher
-
+def driver_dispatcher(function):
+    """numba's dispatcher of a loop's entry point: ``nogil``, cached under the cache root,
+    compiled through :func:`fold_switch_tests`. :func:`galerkin_vi.loops.on_demand.driver`
+    makes it compile each variant at first use, in a child process."""
     with cache_locators():
-        dispatcher = _DRIVER(function)
-    # same layout as numba's CPUDispatcher; only ``compile`` differs
-    dispatcher.__class__ = LoopDispatcher
-    return dispatcher
+        return _DRIVER(function)

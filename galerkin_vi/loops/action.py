@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import driver, kernel
+from ._jit import kernel
 from .common import interpolate
 from .general import assemble_gradient
 from .linalg import (
@@ -31,6 +31,7 @@ from .linalg import (
     lu_factor_inplace,
     lu_solve_inplace,
 )
+from .on_demand import driver
 from .point import lagrangian, point_hessian
 from .traits import HAS_FV, HAS_LQV
 

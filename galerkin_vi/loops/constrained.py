@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import driver, kernel
+from ._jit import kernel
 from .common import (
     FREEZE,
     STATUS_NEWTON_FAILED,
@@ -41,6 +41,7 @@ from .common import (
 from .constrained_band import make_band_work, project_hidden_band, solve_constrained_band
 from .general import assemble_gradient, assemble_newton, make_work
 from .linalg import CONTINUE, CONVERGED, lu_factor_inplace, lu_solve_inplace, newton_status
+from .on_demand import driver
 from .point import (
     point_constraint,
     point_constraint_hessian,

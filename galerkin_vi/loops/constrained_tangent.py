@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import driver, kernel
+from ._jit import kernel
 from .common import (
     STATUS_NEWTON_FAILED,
     STATUS_NONFINITE,
@@ -57,6 +57,7 @@ from .constrained import (
 )
 from .general import make_work
 from .linalg import lu_factor_inplace, lu_solve_inplace
+from .on_demand import driver
 from .point import point_constraint_hessian, point_constraint_jacobian, point_hessian
 from .tangent import (
     advance_chaos,

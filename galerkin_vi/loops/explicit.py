@@ -25,8 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import driver
 from .common import STATUS_NONFINITE, STATUS_OK, save_row, wrap_angles
+from .on_demand import driver
 from .point import point_gradient
 
 __all__ = ["explicit_loop"]

@@ -38,9 +38,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import driver
 from .common import STATUS_NONFINITE, STATUS_OK, save_row, wrap_angles
 from .linalg import block_size
+from .on_demand import driver
 from .point import point_gradient, point_hessian
 from .tangent import advance_chaos, finish_chaos, save_variations, start_chaos
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import driver, kernel
+from ._jit import kernel
 from .common import (
     STATUS_NEWTON_FAILED,
     STATUS_NONFINITE,
@@ -43,6 +43,7 @@ from .linalg import (
     solve_jacobian,
     unknown,
 )
+from .on_demand import driver
 from .point import point_gradient, point_gradient_row, point_hessian
 from .traits import HAS_FV
 

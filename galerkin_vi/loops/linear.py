@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import driver
 from .common import (
     STATUS_NONFINITE,
     STATUS_OK,
@@ -24,6 +23,7 @@ from .common import (
 )
 from .general import assemble_gradient, assemble_newton, make_work, momentum_increment
 from .linalg import factor_jacobian, solve_jacobian, unknown
+from .on_demand import driver
 from .traits import HAS_FV, HAS_LQV
 
 __all__ = ["linear_loop"]

@@ -17,11 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import driver
 from .constrained import constrained_loop
 from .constrained_tangent import constrained_tangent_loop
 from .general import general_loop
 from .linear import linear_loop
+from .on_demand import driver
 from .point import point_hessian
 from .stage_form import stage_form_loop
 from .tangent import tangent_loop

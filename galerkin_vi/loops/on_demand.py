@@ -40,6 +40,8 @@ from pathlib import Path
 from numba.core import caching, sigutils
 from numba.core.registry import CPUDispatcher
 
+from ._jit import cache_locators, compiling, driver_dispatcher, loop_cache_dir
+
 try:  # POSIX; elsewhere the variants are compiled without a cross-process lock
     import fcntl
 except ImportError:  # pragma: no cover - Windows
@@ -53,6 +55,7 @@ __all__ = [
     "compile_in_background",
     "compile_in_child",
     "compile_request",
+    "driver",
     "is_cached",
     "messages_on",
     "set_messages",
@@ -175,7 +178,6 @@ def compile_in_child(dispatcher, sig: tuple) -> float:
     Returns the seconds the child took; raises RuntimeError with the child's last
     line of error output if it failed.
     """
-    from ._jit import loop_cache_dir
 
     env = dict(
         os.environ,
@@ -251,8 +253,6 @@ def _function_of(module: str, qualname: str, file: str | None):
     if file is None:
         target = importlib.import_module(module)
     else:
-        from ._jit import cache_locators
-
         spec = importlib.util.spec_from_file_location(module, file)
         target = importlib.util.module_from_spec(spec)
         sys.modules[module] = target
@@ -261,6 +261,15 @@ def _function_of(module: str, qualname: str, file: str | None):
     for part in qualname.split("."):
         target = getattr(target, part)
     return target
+
+
+def driver(function):
+    """Decorator of a loop's entry point: numba-compiled (``nogil``, cached under the cache
+    root), each variant compiled at its first use by a child, once per machine."""
+    dispatcher = driver_dispatcher(function)
+    # same layout as numba's CPUDispatcher; only ``compile`` differs
+    dispatcher.__class__ = LoopDispatcher
+    return dispatcher
 
 
 def compile_request(stream) -> int:
@@ -272,8 +281,6 @@ def compile_request(stream) -> int:
     parent's and compiled under the variant's lock.
     """
     from numba import jit
-
-    from ._jit import cache_locators, compiling
 
     request = pickle.load(stream)
     module, qualname, sig = request[:3]
@@ -318,8 +325,6 @@ def compile_in_background(dispatcher, sig: tuple) -> bool:
     from ..cache import cache_root
 
     if isinstance(dispatcher, LoopDispatcher):
-        from ._jit import loop_cache_dir
-
         request = pickle.dumps((function.__module__, function.__qualname__, sig))
         # a compiling process that takes the variant's lock itself (no target: nobody
         # holds it for the child)

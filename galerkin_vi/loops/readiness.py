@@ -12,15 +12,13 @@ file in the loops' cache folder records that all of them are there.
 from __future__ import annotations
 
 import os
-import re
 import subprocess
 import sys
 import time
 from collections.abc import Sequence
-from pathlib import Path
 
 from ._jit import discard_unreadable_loops, loop_cache_dir
-from .on_demand import COMPILE_CHILD, messages_on
+from .on_demand import COMPILE_CHILD
 
 __all__ = [
     "MARKER",
@@ -28,8 +26,6 @@ __all__ = [
     "ensure_all_loops",
     "ensure_loops",
     "loops_ready",
-    "prefetch",
-    "runs_ready",
 ]
 
 #: written into the loops' cache folder once every loop is compiled
@@ -42,44 +38,27 @@ def loops_ready() -> bool:
     return (loop_cache_dir() / MARKER).exists()
 
 
-def _marker(label: str, ensembles: bool) -> Path:
-    slug = re.sub(r"[^a-z0-9]+", "-", label.lower()).strip("-")
-    return loop_cache_dir() / "ready" / (slug + ("" if ensembles else ".single"))
-
-
-def runs_ready(labels: Sequence[str], ensembles: bool = True) -> bool:
-    """Whether the warm-up runs ``labels`` have all been compiled (with their ensembles)."""
-    if loops_ready():
-        return True
-    return all(
-        _marker(label, True).exists() or (not ensembles and _marker(label, False).exists())
-        for label in labels
-    )
-
-
 def compile_all(
     jobs: int | None = None,
     verbose: bool = False,
-    labels: Sequence[str] | None = None,
+    runs: Sequence[int] | None = None,
     ensembles: bool = True,
 ) -> float:
     """Compile (or load) every loop variant in ``jobs`` processes; return the seconds taken.
 
-    With ``labels``, only the variants of those warm-up runs
-    (:mod:`galerkin_vi.tools.warmup`); with ``ensembles=False`` without the member
-    loops of ensembles. Each variant is compiled under its own lock
+    With ``runs``, only the variants of the warm-up runs of those indices
+    (:mod:`galerkin_vi.tools.warmup`, which names them); with ``ensembles=False``
+    without the member loops of ensembles. Each variant is compiled under its own lock
     (:mod:`.on_demand`), so processes that run this at once compile it once.
     """
-    from ..tools.warmup import run_indices
-
     jobs = jobs or max(1, min(2, os.cpu_count() or 1))
-    runs = [] if labels is None else ["--runs", ",".join(map(str, run_indices(labels)))]
+    chosen = [] if runs is None else ["--runs", ",".join(map(str, runs))]
     if not ensembles:
-        runs.append("--no-ensembles")
+        chosen.append("--no-ensembles")
     # the children must use this process's loop folder, fixed when the loops were imported
     env = dict(os.environ, GALERKIN_VI_CACHE_DIR=str(loop_cache_dir().parent.parent))
     start = time.perf_counter()
-    command = [sys.executable, "-m", "galerkin_vi.tools.warmup", "--of", str(jobs), *runs]
+    command = [sys.executable, "-m", "galerkin_vi.tools.warmup", "--of", str(jobs), *chosen]
     processes = [
         subprocess.Popen(
             [*command, "--group", str(g)],
@@ -99,32 +78,11 @@ def compile_all(
             failures.append(err.strip().splitlines()[-1] if err.strip() else "no message")
     if failures:
         raise RuntimeError(f"compiling the time loops failed: {'; '.join(failures)}")
-    if labels is None and ensembles:
+    if runs is None and ensembles:
         marker = loop_cache_dir() / MARKER
         marker.parent.mkdir(parents=True, exist_ok=True)
         marker.write_text("every loop compiled\n")
-    for label in labels or ():
-        marker = _marker(label, ensembles)
-        marker.parent.mkdir(parents=True, exist_ok=True)
-        marker.write_text("compiled\n")
     return time.perf_counter() - start
-
-
-def prefetch(labels: Sequence[str], ensembles: bool = False) -> float:
-    """Compile the variants of the warm-up runs ``labels`` in parallel, unless they are ready.
-
-    For a process that knows which loops it will run (``galerkin-vi verify``):
-    compiled at once on all cores where first use would compile them one after
-    another. Returns the seconds taken (0 when everything was ready).
-    """
-    if runs_ready(labels, ensembles) or os.environ.get(COMPILE_CHILD):
-        return 0.0
-    if messages_on():
-        sys.stderr.write(
-            f"galerkin_vi: compiling the {len(labels)} time loops this job runs, in parallel "
-            "(once for this machine)...\n"
-        )
-    return compile_all(labels=labels, ensembles=ensembles)
 
 
 def ensure_loops() -> None:

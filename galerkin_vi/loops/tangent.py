@@ -66,7 +66,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import newton
-from ._jit import driver, kernel
+from ._jit import kernel
 from .common import (
     STATUS_NEWTON_FAILED,
     STATUS_NONFINITE,
@@ -93,6 +93,7 @@ from .linalg import (
     solve_jacobian,
     unknown,
 )
+from .on_demand import driver
 from .point import point_gradient, point_hessian
 from .traits import BAND, HAS_FV, HAS_LQV
 

@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import driver
 from .common import (
     STATUS_NEWTON_FAILED,
     STATUS_NONFINITE,
@@ -51,6 +50,7 @@ from .common import (
     wrap_angles,
 )
 from .linalg import lu_factor_inplace, lu_solve_inplace
+from .on_demand import driver
 from .point import VELOCITY, point_mass_row, point_velocity_row
 from .stage_form import too_slow
 

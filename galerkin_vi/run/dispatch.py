@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -26,10 +26,27 @@ from .spec import RunSpec, compiled_run_spec, reference_run_spec
 from .tangent import constrained_tangent_spec, variation_request
 from .trajectory import Trajectory
 
-if TYPE_CHECKING:
-    from ..integrator import Integrator
+__all__ = [
+    "IntegratorSettings",
+    "integrate_run",
+    "position_step",
+    "run_spec_for",
+    "tangent_spec_for",
+]
 
-__all__ = ["integrate_run", "position_step", "run_spec_for", "tangent_spec_for"]
+
+class IntegratorSettings(Protocol):
+    """What the drivers read of an :class:`~galerkin_vi.Integrator` (an interface, so that
+    this module, below the integrator, does not import it)."""
+
+    system: LagrangianSystem
+    method: Galerkin | Composition
+    backend: str
+    tol: float
+    maxiter: int
+    run_spec: RunSpec
+    tangent_run_spec: RunSpec
+    kernel_path: str
 
 
 def run_spec_for(
@@ -120,7 +137,7 @@ def tangent_spec_for(
 
 
 def integrate_run(
-    integrator: Integrator,
+    integrator: IntegratorSettings,
     q0: ArrayLike,
     v0: ArrayLike | None,
     p0: ArrayLike | None,
@@ -137,7 +154,7 @@ def integrate_run(
 
     Parameters
     ----------
-    integrator : Integrator
+    integrator : IntegratorSettings
     q0, v0, p0, contact_mode, tangent, sensitivity, renormalize_every
         As for :meth:`Integrator.integrate`.
     **run
@@ -170,7 +187,12 @@ def integrate_run(
 
 
 def position_step(
-    integrator: Integrator, q0: ArrayLike, q1: ArrayLike, h: float, t0: float, params: object
+    integrator: IntegratorSettings,
+    q0: ArrayLike,
+    q1: ArrayLike,
+    h: float,
+    t0: float,
+    params: object,
 ) -> NDArray[np.float64]:
     """``integrator.step_del(q0, q1, h, t0, params)``: :math:`q_{k+1}` of the
     position-only DEL form, by the composition's two moves

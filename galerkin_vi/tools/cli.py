@@ -98,7 +98,7 @@ def _verify(args: argparse.Namespace) -> int:
         bar.set_description(label)
 
     start = time.perf_counter()
-    from ..loops.readiness import prefetch
+    from .warmup import prefetch
 
     prefetch(report.loop_labels(selected, args.degrees, args.families))
     try:

@@ -335,7 +335,7 @@ def loop_labels(
     """The warm-up runs whose loops the Galerkin studies of :func:`verify` run.
 
     ``galerkin-vi verify`` compiles them in parallel at its start
-    (:func:`galerkin_vi.loops.readiness.prefetch`); a study whose loop variant
+    (:func:`galerkin_vi.tools.warmup.prefetch`); a study whose loop variant
     differs still compiles it at first use.
     """
     from .warmup import variant_labels

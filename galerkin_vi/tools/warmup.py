@@ -13,12 +13,23 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 import time
 from collections.abc import Sequence
 from functools import cache
+from pathlib import Path
 
-__all__ = ["BOUNDARY_VALUE", "RUN_SECONDS", "main", "run_indices", "variant_labels", "warm_up"]
+__all__ = [
+    "BOUNDARY_VALUE",
+    "RUN_SECONDS",
+    "main",
+    "prefetch",
+    "run_indices",
+    "runs_ready",
+    "variant_labels",
+    "warm_up",
+]
 
 #: the label of the run that compiles the Newton iteration of boundary-value problems
 #: (:mod:`galerkin_vi.loops.action`) instead of a time loop
@@ -194,6 +205,52 @@ def _group(index: int, count: int, runs: Sequence[int] | None = None) -> list[in
         loads[target] += RUN_SECONDS[run]
         members[target].append(run)
     return sorted(members[index])
+
+
+def _marker(label: str, ensembles: bool) -> Path:
+    """The file that records that warm-up run ``label`` has been compiled (in the loops'
+    folder: a new package version starts without them)."""
+    from ..loops import loop_cache_dir
+
+    slug = re.sub(r"[^a-z0-9]+", "-", label.lower()).strip("-")
+    return loop_cache_dir() / "ready" / (slug + ("" if ensembles else ".single"))
+
+
+def runs_ready(labels: Sequence[str], ensembles: bool = True) -> bool:
+    """Whether the warm-up runs ``labels`` have all been compiled (with their ensembles)."""
+    from ..loops.readiness import loops_ready
+
+    if loops_ready():
+        return True
+    return all(
+        _marker(label, True).exists() or (not ensembles and _marker(label, False).exists())
+        for label in labels
+    )
+
+
+def prefetch(labels: Sequence[str], ensembles: bool = False) -> float:
+    """Compile the variants of the warm-up runs ``labels`` in parallel, unless they are ready.
+
+    For a process that knows which loops it will run (``galerkin-vi verify``):
+    compiled at once on all cores where first use would compile them one after
+    another. Returns the seconds taken (0 when everything was ready).
+    """
+    from ..loops.on_demand import COMPILE_CHILD, messages_on
+    from ..loops.readiness import compile_all
+
+    if runs_ready(labels, ensembles) or os.environ.get(COMPILE_CHILD):
+        return 0.0
+    if messages_on():
+        sys.stderr.write(
+            f"galerkin_vi: compiling the {len(labels)} time loops this job runs, in parallel "
+            "(once for this machine)...\n"
+        )
+    seconds = compile_all(runs=run_indices(labels), ensembles=ensembles)
+    for label in labels:
+        marker = _marker(label, ensembles)
+        marker.parent.mkdir(parents=True, exist_ok=True)
+        marker.write_text("compiled\n")
+    return seconds
 
 
 def run_indices(labels: Sequence[str]) -> list[int]:
