@@ -195,6 +195,19 @@ def test_importing_the_package_imports_none_of_its_dependencies():
     assert done.stdout.strip() == "[]"
 
 
+def test_a_compiling_child_imports_the_loops_without_sympy():
+    # the child of compile_in_child imports on_demand and the loop modules; SymPy and the
+    # code printer would add about half a second to every first use of a loop kind
+    code = (
+        "import sys; from galerkin_vi.loops.on_demand import compile_request; "
+        "import galerkin_vi.loops.tangent, galerkin_vi.loops.constrained; "
+        "print(sorted(m for m in ('sympy', 'scipy', 'galerkin_vi.printer') if m in sys.modules))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
+
+
 _PENDULUM = textwrap.dedent(
     """
     import sympy as sp

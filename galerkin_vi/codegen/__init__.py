@@ -15,18 +15,29 @@ The time loops are not generated: they are ordinary modules of
 
 from __future__ import annotations
 
-from ..printer import KernelPrinter, unsupported_functions
-from .source import render_module
-from .spec import (
-    GENERATOR_VERSION,
-    KernelSpec,
-    SpecSummary,
-    kernel_spec,
-    signature,
-    sparsity_pattern,
-    summarize,
-    use_banded,
-)
+import importlib
+from typing import TYPE_CHECKING
+
+# names resolved at first access (PEP 562): the loops read ``codegen.slots`` alone, and a
+# compiling child process then imports neither SymPy nor the printer
+_SOURCES: dict[str, str] = {
+    "KernelPrinter": "..printer",
+    "unsupported_functions": "..printer",
+    "render_module": ".source",
+    **dict.fromkeys(
+        (
+            "GENERATOR_VERSION",
+            "KernelSpec",
+            "SpecSummary",
+            "kernel_spec",
+            "signature",
+            "sparsity_pattern",
+            "summarize",
+            "use_banded",
+        ),
+        ".spec",
+    ),
+}
 
 __all__ = [
     "GENERATOR_VERSION",
@@ -41,3 +52,31 @@ __all__ = [
     "unsupported_functions",
     "use_banded",
 ]
+
+
+def __getattr__(name: str):
+    module = _SOURCES.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(module, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_SOURCES})
+
+
+if TYPE_CHECKING:
+    from ..printer import KernelPrinter, unsupported_functions
+    from .source import render_module
+    from .spec import (
+        GENERATOR_VERSION,
+        KernelSpec,
+        SpecSummary,
+        kernel_spec,
+        signature,
+        sparsity_pattern,
+        summarize,
+        use_banded,
+    )
