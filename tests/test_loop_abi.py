@@ -353,6 +353,8 @@ def test_point_slots_are_one_table():
         "point_constraint_hessian": abi.CONSTRAINT_HESS,
         "point_mass": abi.MASS,
         "point_velocity": abi.VELOCITY,
+        "point_contact": abi.CONTACT,
+        "point_slip": abi.SLIP,
     }
     assert names == POINT_SLOTS
     # the loops' modules read the same objects
@@ -366,6 +368,7 @@ def test_point_slots_are_one_table():
     assert len(addresses) == abi.N_SLOTS
     assert addresses[abi.GRADIENT] != 0 and addresses[abi.LAGRANGIAN] != 0
     assert addresses[abi.CONSTRAINT] == 0  # no constraints: never compiled
+    assert addresses[abi.CONTACT] == 0 and addresses[abi.SLIP] == 0
 
 
 def test_status_codes_map_to_run_statuses():

@@ -75,6 +75,8 @@ def _c_signatures() -> dict:
         "point_constraint_hessian": types.void(double, *(ptr,) * 4),
         "point_mass": types.void(double, *(ptr,) * 7),
         "point_velocity": types.void(double, *(ptr,) * 5),
+        "point_contact": types.void(double, *(ptr,) * 6),
+        "point_slip": types.void(double, *(ptr,) * 7),
     }
 
 

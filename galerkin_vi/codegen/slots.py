@@ -23,4 +23,6 @@ POINT_SLOTS = {
     "point_constraint_hessian": 6,
     "point_mass": 7,
     "point_velocity": 8,
+    "point_contact": 9,
+    "point_slip": 10,
 }

@@ -49,6 +49,8 @@ FUNCTIONS = {
     "point_constraint_hessian": "t, q, lam, prm, Hg",
     "point_mass": "t, q, v, prm, Lq, Lv, Lqv, Lvv",
     "point_velocity": "t, q, p, prm, F, V",
+    "point_contact": "t, q, v, prm, cg, cG, cH",
+    "point_slip": "t, q, v, prm, w, Wq, Wv, Wvq",
 }
 
 # numba's compile time grows faster than linearly with a function's length: large
@@ -437,6 +439,18 @@ def _constraint_functions(spec: KernelSpec) -> list[str]:
     ]
 
 
+def _contact_functions(spec: KernelSpec) -> list[str]:
+    """Point functions of the contacts' gaps and slips (those the system has)."""
+    parts = []
+    if spec.contact_entries:
+        parts.append(("point_contact", spec.contact_entries))
+    if spec.slip_entries:
+        parts.append(("point_slip", spec.slip_entries))
+    return [
+        line for name, entries in parts for line in _point_function(name, list(entries), False)[0]
+    ]
+
+
 _SLOT = re.compile(r"^    (\w+)(\[\d+\])? (\+?=) (.*)$")
 
 
@@ -560,6 +574,7 @@ def render_module(spec: KernelSpec, key: str) -> str:
     ]
     tables += [table for _, function_tables in functions for table in function_tables]
     body = [line for lines, _ in functions for line in lines] + _constraint_functions(spec)
+    body += _contact_functions(spec)
     body += steps
     if tables:
         head += ["", "# index tables of the repeated terms' scatter loops", *tables]

@@ -47,7 +47,7 @@ __all__ = [
     "use_banded",
 ]
 
-GENERATOR_VERSION = "19"
+GENERATOR_VERSION = "20"
 
 #: the fewest instances of a term that become a scatter loop (:mod:`.scatter`)
 MIN_REPEATS = 8
@@ -100,6 +100,8 @@ class KernelSpec:
     constraint_hessian_entries: tuple[tuple[str, sp.Expr], ...] = ()
     repeats: tuple[ScatterGroup, ...] = ()
     repeated_loop: bool = False
+    contact_entries: tuple[tuple[str, sp.Expr], ...] = ()
+    slip_entries: tuple[tuple[str, sp.Expr], ...] = ()
 
     @property
     def constraint_parts(self) -> tuple[tuple[str, sp.Expr], ...]:
@@ -264,6 +266,7 @@ def kernel_spec(system: LagrangianSystem, repeats: bool = True) -> KernelSpec:
         and has_generated_loops(system, system.pieces)
         and not any(target.startswith("Lq[") for target, _ in gradient),
         **_constraint_entries(system, rename),
+        **_contact_entries(system, rename),
     )
 
 
@@ -437,6 +440,48 @@ def _constraint_entries(system: LagrangianSystem, rename: dict) -> dict:
     }
 
 
+def _contact_entries(system: LagrangianSystem, rename: dict) -> dict:
+    r"""Entries of the contact point functions (empty without contacts).
+
+    The gaps ``cg[j]`` :math:`= \varphi_j`, their gradients ``cG[j n + a]`` and Hessians
+    ``cH[(j n + a) n + b]``; the slip velocities of every contact that declares them,
+    stacked in the contacts' order (rows k), ``w[k]``, ``Wq[k n + a]`` :math:`=
+    \partial w_k/\partial q_a`, ``Wv[k n + a]`` :math:`= \partial w_k/\partial v_a` and
+    ``Wvq[(k n + a) n + b]`` :math:`= \partial^2 w_k/\partial v_a\partial q_b`.
+    """
+    if not system.contacts:
+        return {}
+    q, v, n = system.q, system.v, system.n
+    gaps, grads, hessians = [], [], []
+    for j, contact in enumerate(system.contacts):
+        gap = contact.gap
+        gaps.append((f"cg[{j}]", gap))
+        for a in range(n):
+            derivative = sp.diff(gap, q[a])
+            grads.append((f"cG[{j * n + a}]", derivative))
+            for b in range(n):
+                hessians.append((f"cH[{(j * n + a) * n + b}]", sp.diff(derivative, q[b])))
+    values, by_q, by_v, mixed = [], [], [], []
+    k = 0
+    for contact in system.contacts:
+        for w in contact.slip or ():
+            values.append((f"w[{k}]", w))
+            for a in range(n):
+                by_q.append((f"Wq[{k * n + a}]", sp.diff(w, q[a])))
+                by_v.append((f"Wv[{k * n + a}]", sp.diff(w, v[a])))
+                for b in range(n):
+                    mixed.append((f"Wvq[{(k * n + a) * n + b}]", sp.diff(w, v[a], q[b])))
+            k += 1
+
+    def renamed(entries):
+        return tuple((target, e.xreplace(rename)) for target, e in entries if e != 0)
+
+    return {
+        "contact_entries": renamed(gaps + grads + hessians),
+        "slip_entries": renamed(values + by_q + by_v + mixed),
+    }
+
+
 def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
     """SHA-256 naming the cache entry of ``spec`` for ``backend`` at ``backend_version``.
 
@@ -463,6 +508,7 @@ def signature(spec: KernelSpec, backend: str, backend_version: str) -> str:
             )
         ),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.constraint_parts),
+        *(f"{k}={sp.srepr(e)}" for k, e in spec.contact_entries + spec.slip_entries),
         sp.srepr(spec.lagrangian),
         *(f"{k}={sp.srepr(e)}" for k, e in spec.hessian_entries),
         # every generated function's entries: a spec of derivatives in the parameters

@@ -74,6 +74,23 @@ CONTACT_MODES = ("auto", "event", "time-stepping")
 RELEASED_IMPULSE = 1e-12
 
 
+def compiled_step_addresses(integrator):
+    """The addresses of the point functions the compiled contact step calls, or None
+    where the step runs in NumPy (the NumPy backend; second derivatives stored banded)."""
+    from .time_stepping import COMPILED_POINTS
+
+    if integrator.backend != "numba" or integrator.uses_banded_storage:
+        return None
+    system = integrator.system
+    names = tuple(
+        name
+        for name in COMPILED_POINTS
+        if (system.m or "constraint" not in name)
+        and (name != "point_slip" or any(contact.slip for contact in system.contacts))
+    )
+    return integrator.compiled_point_functions(names)[0]
+
+
 def integrate_with_contacts(
     integrator, q0, v0, p0, *, h, n_steps, t0, params, save_every, project, on_failure,
     dense_output, t_span, events, progress, t_eval, contact_mode, variations=None,
@@ -296,7 +313,9 @@ class _Run:
             # one per run, not kept with the system: it holds the run's parameters, and
             # ensemble members run in threads at once
             tables = self.integrator.method.tables
-            self._stepper = ContactStepper(self.functions, tables, self.prm)
+            self._stepper = ContactStepper(
+                self.functions, tables, self.prm, compiled_step_addresses(self.integrator)
+            )
             self._duals = np.ones(self._stepper.size)
         h = self.h
         t, q, p = self.last()

@@ -54,38 +54,23 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from ..interior_point import (
+    ACCEPTABLE,
+    CENTRING,
+    COMPLEMENTARITY,
+    DEGENERATE,
+    FRACTION_TO_BOUNDARY,
+    LINE_SEARCH,
+    MAX_ITERATIONS,
+    POLISHED,
+    RESIDUAL,
+    TO_BOUNDARY,
+)
 from ..model.constraints import project_momentum
 from ..reference import numpy as numpy_backend
 from .impact import ContactFunctions
 
 __all__ = ["ContactForces", "ContactStep", "ContactStepper", "StepResult"]
-
-#: interior-point iterations per step at most
-MAX_ITERATIONS = 50
-#: largest entry of z o y at which a step is solved, relative to the coordinates' scale
-#: max(1, |q_k|) (a gap of a resting contact to round-off)
-COMPLEMENTARITY = 1e-13
-#: largest block duality gap z_b . y_b, relative likewise, at which a step whose iteration
-#: stalls (degenerate contacts: redundant points of a face at rest) is accepted (the
-#: issue's bound)
-ACCEPTABLE = 1e-10
-#: the least centring target kappa, relative to the complementarity's tolerance
-CENTRING = 1e-3
-#: a cone's Jordan determinant relative to its scalar squared below which the
-#: Nesterov-Todd scaling of its block is not formed (its rows stay unscaled)
-DEGENERATE = 1e-26
-#: relative residual of the stage and slack equations at which a step is solved
-RESIDUAL = 1e-12
-#: the fraction of the way to the cones' boundary a step goes at least; at most Dojo's
-#: 1 - max(residual, complementarity)^2, but not beyond 1 - TO_BOUNDARY (Dojo's rounds
-#: to 1 at these tolerances and lands the iterates on the boundary, where the
-#: Nesterov-Todd scaling cannot be formed)
-FRACTION_TO_BOUNDARY = 0.995
-TO_BOUNDARY = 1e-8
-#: relative residual below which a solved step takes no polishing Newton step
-POLISHED = 1e-15
-#: halvings of a step at most in the line search
-LINE_SEARCH = 10
 
 
 @dataclass(frozen=True)
@@ -143,12 +128,30 @@ class ContactStep:
     cone: slice | None
 
 
-class ContactStepper:
-    """The interior-point step of a system with contacts and a Galerkin method."""
+#: the point functions the compiled step calls
+COMPILED_POINTS = (
+    "point_hessian",
+    "point_contact",
+    "point_slip",
+    "point_constraint",
+    "point_constraint_jacobian",
+    "point_constraint_hessian",
+)
 
-    def __init__(self, functions: ContactFunctions, tables, prm) -> None:
+
+class ContactStepper:
+    """The interior-point step of a system with contacts and a Galerkin method.
+
+    With ``addresses`` (the system's compiled point functions :data:`COMPILED_POINTS`
+    in the slots of :mod:`galerkin_vi.loops.point`, dense storage) a step runs
+    compiled (:func:`galerkin_vi.loops.contact_step.contact_step`, the same
+    iteration with the Newton systems reduced blockwise); without, in NumPy.
+    """
+
+    def __init__(self, functions: ContactFunctions, tables, prm, addresses=None) -> None:
         system = functions.system
         self.system, self.tables, self.prm, self.functions = system, tables, prm, functions
+        self.addresses = None if addresses is None else np.asarray(addresses, dtype=np.int64)
         n = system.n
         self.layout: list[ContactStep] = []
         size = 0
@@ -178,6 +181,19 @@ class ContactStepper:
         ]
         self.size = size
         self.n = n
+        # the compiled step's layout: cone start (or -1) and length per contact, the
+        # first row of its slips among every contact's declared slips, the frictions
+        self._cone_start = np.array(
+            [layout.cone.start if layout.cone else -1 for layout in self.layout], dtype=np.int64
+        )
+        self._cone_length = np.array(
+            [layout.cone.stop - layout.cone.start if layout.cone else 0 for layout in self.layout],
+            dtype=np.int64,
+        )
+        declared = [len(contact.slip or ()) for contact in system.contacts]
+        self._slip_start = np.concatenate([[0], np.cumsum(declared)[:-1]]).astype(np.int64)
+        self._slip_rows_declared = int(sum(declared))
+        self._friction = np.array([contact.friction for contact in system.contacts], dtype=float)
         self.tangential_size = max(
             (len(c.slip) for c in system.contacts if c.friction > 0.0), default=1
         )
@@ -450,7 +466,41 @@ class ContactStepper:
         ``excluded``: a contact kept apart (no force: its y is 0 and its rows
         drop out), as when the first touch of an open contact is looked for.
         ``duals`` None starts from the cones' centres (the Jordan identity).
+        Compiled when the stepper has the point functions' addresses, else NumPy.
         """
+        if self.addresses is not None:
+            return self.compiled_step(t0, h, qk, pk, guess_C, duals, excluded)
+        return self.numpy_step(t0, h, qk, pk, guess_C, duals, excluded)
+
+    def compiled_step(
+        self, t0: float, h: float, qk, pk, guess_C, duals, excluded: int | None = None
+    ) -> StepResult:
+        """:meth:`step` by :func:`galerkin_vi.loops.contact_step.contact_step`."""
+        from ..loops.contact_step import contact_step
+
+        tb, n, mh = self.tables, self.n, self.system.m
+        s = tb.d.size - 1
+        qk = np.ascontiguousarray(qk, dtype=float)
+        pk = np.ascontiguousarray(pk, dtype=float)
+        x = np.zeros(s * (n + mh))
+        x[: s * n] = np.asarray(guess_C, dtype=float)[1:].ravel()
+        y = np.zeros(self.size) if duals is None else np.array(duals, dtype=float)
+        z = np.zeros(self.size)
+        p_end, stats = np.zeros(n), np.zeros(3)
+        contact_step(
+            self.addresses, float(t0), float(h), qk, pk, x, y, z, duals is not None,
+            -1 if excluded is None else int(excluded), tb.b, tb.c, tb.Phi, tb.D, tb.d,
+            np.ascontiguousarray(self.prm, dtype=float), n, s, mh, self._normal,
+            self._cone_start, self._cone_length, self._slip_start, self._friction,
+            self._slip_rows_declared, p_end, stats,
+        )  # fmt: skip
+        C = np.vstack([np.zeros((1, n)), x[: s * n].reshape(s, n)])
+        return self._result(t0, h, qk, p_end, C, y, z, int(stats[0]), stats[1], bool(stats[2]))
+
+    def numpy_step(
+        self, t0: float, h: float, qk, pk, guess_C, duals, excluded: int | None = None
+    ) -> StepResult:
+        """:meth:`step` in NumPy, the full Newton system solved by LU."""
         s = self.tables.d.size - 1
         nx, m = s * (self.n + self.system.m), self.size
         fixed = self._fixed(excluded)
@@ -538,7 +588,14 @@ class ContactStepper:
             (x, y, z), eq, (residual, unsolved, loose, complementarity) = trial, eq_trial, measures
         if not converged:  # stalled or out of iterations: the looser bound
             converged = residual <= RESIDUAL and loose <= ACCEPTABLE / COMPLEMENTARITY
-        p_new, C = eq[7], eq[8]
+        return self._result(t0, h, qk, eq[7], eq[8], y, z, iterations, complementarity, converged)
+
+    def _result(
+        self, t0, h, qk, p_new, C, y, z, iterations, complementarity, converged
+    ) -> StepResult:
+        """The step's result from its solution: the momentum projected onto the hidden
+        constraint, the forces by contact, which frictional contacts stick."""
+        s = C.shape[0] - 1
         if self.system.m and converged:
             try:
                 p_new = self._projected(t0 + h, qk + C[s], p_new)
@@ -562,8 +619,8 @@ class ContactStepper:
             duals=y,
             sticking=sticking,
             iterations=iterations,
-            complementarity=complementarity,
-            converged=converged,
+            complementarity=float(complementarity),
+            converged=bool(converged),
         )
 
 

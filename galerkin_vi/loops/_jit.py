@@ -49,6 +49,7 @@ __all__ = [
     "LoopCacheLocator",
     "PointCacheLocator",
     "cache_locators",
+    "called",
     "compiling",
     "discard_unreadable_loops",
     "driver_dispatcher",
@@ -383,6 +384,9 @@ kernel = njit(inline="always", error_model="numpy", cache=False)
 # helpers of scalars only: ordinary calls, which LLVM inlines (no reference counts to
 # pay), so that numba's IR inliner does not copy them into every call site
 scalar = njit(error_model="numpy", cache=False)
+# helpers with much work per call (the contact step's equations and blockwise solve):
+# ordinary calls, typed and lowered once per signature instead of at every call site
+called = njit(error_model="numpy", cache=False)
 
 
 def _never_none(typ) -> bool:

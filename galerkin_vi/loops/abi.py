@@ -51,6 +51,7 @@ __all__ = [
     "AUTONOMOUS",
     "BAND",
     "CONSTRAINT",
+    "CONTACT",
     "CONSTRAINT_HESS",
     "CONSTRAINT_JAC",
     "CONSTRAINT_RATE",
@@ -65,6 +66,7 @@ __all__ = [
     "N_TRAITS",
     "POINT_SLOTS",
     "RESULT_FIELDS",
+    "SLIP",
     "STATUS_NEWTON_FAILED",
     "STATUS_NONFINITE",
     "STATUS_OK",
@@ -116,6 +118,10 @@ MASS = POINT_SLOTS["point_mass"]
 #: the velocity v = M^-1 (p - a) and L_q + f at it, from (t, q, p) (the varying-mass
 #: loop, when M is solved in closed form); 0 when the system has none
 VELOCITY = POINT_SLOTS["point_velocity"]
+#: the contacts' gaps, their gradients and Hessians (the time-stepping contact step)
+CONTACT = POINT_SLOTS["point_contact"]
+#: the stacked slip velocities and their derivatives in q, v and v then q
+SLIP = POINT_SLOTS["point_slip"]
 N_SLOTS = len(POINT_SLOTS)
 
 # ------------------------------------------------------------------ traits

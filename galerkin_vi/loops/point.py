@@ -24,6 +24,8 @@ slot                   function
 ``CONSTRAINT_HESS``    ``void(double t, q, lam, prm, Hg)``
 ``MASS``               ``void(double t, q, v, prm, Lq, Lv, Lqv, Lvv)``
 ``VELOCITY``           ``void(double t, q, p, prm, F, V)``
+``CONTACT``            ``void(double t, q, v, prm, cg, cG, cH)``
+``SLIP``               ``void(double t, q, v, prm, w, Wq, Wv, Wvq)``
 =====================  ===================================================================
 
 Entries that are identically zero are never written: the loops zero those
@@ -45,11 +47,13 @@ from .abi import (
     CONSTRAINT_HESS,
     CONSTRAINT_JAC,
     CONSTRAINT_RATE,
+    CONTACT,
     GRADIENT,
     HESSIAN,
     LAGRANGIAN,
     MASS,
     N_SLOTS,
+    SLIP,
     VELOCITY,
 )
 
@@ -58,20 +62,24 @@ __all__ = [
     "CONSTRAINT_HESS",
     "CONSTRAINT_JAC",
     "CONSTRAINT_RATE",
+    "CONTACT",
     "GRADIENT",
     "HESSIAN",
     "LAGRANGIAN",
     "MASS",
     "N_SLOTS",
+    "SLIP",
     "VELOCITY",
     "point_constraint",
     "point_constraint_hessian",
     "point_constraint_jacobian",
     "point_constraint_rate",
+    "point_contact",
     "point_gradient",
     "point_gradient_row",
     "point_hessian",
     "point_mass_row",
+    "point_slip",
     "point_velocity_row",
 ]
 
@@ -224,6 +232,16 @@ def _call5(typingctx, address, t, a1, a2, a3, a4, a5):
 
 
 @intrinsic
+def _call6(typingctx, address, t, a1, a2, a3, a4, a5, a6):
+    return _typer(address, t, (a1, a2, a3, a4, a5, a6))
+
+
+@intrinsic
+def _call7(typingctx, address, t, a1, a2, a3, a4, a5, a6, a7):
+    return _typer(address, t, (a1, a2, a3, a4, a5, a6, a7))
+
+
+@intrinsic
 def _call9(typingctx, address, t, a1, a2, a3, a4, a5, a6, a7, a8, a9):
     return _typer(address, t, (a1, a2, a3, a4, a5, a6, a7, a8, a9))
 
@@ -298,3 +316,19 @@ def point_constraint_hessian(fn, t, q, lam, prm, Hg):
     r"""Write :math:`\sum_j \lambda_j \partial^2 g_j/\partial q_a\partial q_b` into
     ``Hg[a n + b]``."""
     _call4(fn[CONSTRAINT_HESS], t, q, lam, prm, Hg)
+
+
+@kernel
+def point_contact(fn, t, q, v, prm, cg, cG, cH):
+    r"""Write the gaps :math:`\varphi_j` into ``cg``, their gradients into ``cG[j n + a]``
+    and their Hessians into ``cH[(j n + a) n + b]``."""
+    _call6(fn[CONTACT], t, q, v, prm, cg, cG, cH)
+
+
+@kernel
+def point_slip(fn, t, q, v, prm, w, Wq, Wv, Wvq):
+    r"""Write the stacked slip velocities :math:`w_k` into ``w`` and
+    :math:`\partial w_k/\partial q_a`, :math:`\partial w_k/\partial v_a`,
+    :math:`\partial^2 w_k/\partial v_a \partial q_b` into ``Wq[k n + a]``,
+    ``Wv[k n + a]``, ``Wvq[(k n + a) n + b]``."""
+    _call7(fn[SLIP], t, q, v, prm, w, Wq, Wv, Wvq)

@@ -37,6 +37,9 @@ BOUNDARY_VALUE = "boundary-value problem"
 #: the label prefix of the runs that compile the tangent loop and the adjoint's reverse
 #: pass (:mod:`galerkin_vi.loops.tangent`)
 TANGENT = "tangent map"
+#: the label of the run that compiles the time-stepping contact step
+#: (:mod:`galerkin_vi.loops.contact_step`)
+CONTACT_STEP = "contact step"
 
 
 @cache
@@ -51,14 +54,17 @@ def _runs():
     loop, the tangent loop and the discrete adjoint's reverse pass (dense or banded;
     their couplings are run-time flags), the constrained tangent loop, the explicit
     tangent loop (angles or none, dense or banded Hessians). Each implicit variant
-    is also run as a two-member ensemble (:mod:`galerkin_vi.loops.members`). The last
-    run solves a boundary-value problem (:mod:`galerkin_vi.loops.action`).
+    is also run as a two-member ensemble (:mod:`galerkin_vi.loops.members`). The
+    boundary-value run solves a boundary-value problem (:mod:`galerkin_vi.loops.action`);
+    the last takes time-stepping contact steps (:mod:`galerkin_vi.loops.contact_step`,
+    one variant for every system).
     """
     import sympy as sp
 
     from ..method.composition import Composition
     from ..method.galerkin import Galerkin
     from ..method.quadrature import gauss_legendre
+    from ..model.contacts import Contact
     from ..model.system import LagrangianSystem
 
     t = sp.Symbol("t")
@@ -100,6 +106,12 @@ def _runs():
         [c for i in range(n) for c in (0.0, -1.0 - i)],
         [c for i in range(n) for c in (0.1, 0.0)],
     )
+    # a ball on the floor, with friction: the contact step (a constrained system or any
+    # other takes the same variant)
+    ball = system(
+        (vx**2 + vy**2) / 2 - y, [x, y], [vx, vy],
+        contacts=[Contact(y, restitution=0.0, friction=0.5, slip=[vx])],
+    )  # fmt: skip
     timed_pendulum = system(v**2 / 2 + (1 + driven) * sp.cos(q), [q], [v], t=t)
     timed_quartic = system(v**2 / 2 - q**4 / 4 + driven * q, [q], [v], t=t)
     timed_angles = system(full_mass + (1 + driven) * sp.cos(x), [x, y], [vx, vy], t=t)
@@ -136,6 +148,7 @@ def _runs():
         (f"{TANGENT}, explicit, no angles", coupled, composed, True, *two),
         (f"{TANGENT}, explicit, banded", chain, composed, True, *chain0),
         (BOUNDARY_VALUE, pendulum, g2, True, *one),
+        (CONTACT_STEP, ball, g1, True, [0.0, 0.0], [0.5, 0.0]),
     ]
 
 
@@ -192,6 +205,7 @@ RUN_SECONDS = (
     8.0,
     8.0,
     31.0,
+    8.0,
 )
 
 
@@ -295,7 +309,12 @@ def _warm_up_one(run: tuple, ensembles: bool = True) -> float:
 
     label, system, method, specialize, q0, v0 = run
     start = time.perf_counter()
-    if label == BOUNDARY_VALUE:
+    if label == CONTACT_STEP:
+        integrator = Integrator(system, method, specialize=specialize)
+        integrator.integrate(
+            q0, v0=v0, h=0.01, n_steps=2, contact_mode="time-stepping", on_failure="raise"
+        )
+    elif label == BOUNDARY_VALUE:
         solve_bvp(system, method, q0, v0, (0.0, 0.1), 4, backend="numba")
     elif label.startswith(TANGENT):
         from ..tangent.adjoint import warm_up_adjoint
