@@ -268,6 +268,7 @@ class _Run:
         self.forces: list[tuple[float, NDArray, NDArray, int, float]] = []
         self._stepper = None
         self._duals = None
+        self._has_duals = False
 
     def last(self):
         """(t, q, p) of the last row."""
@@ -317,10 +318,29 @@ class _Run:
                 self.functions, tables, self.prm, compiled_step_addresses(self.integrator)
             )
             self._duals = np.ones(self._stepper.size)
+            # the compiled loop starts its first step from the cones' centres, as
+            # _attempt's second try (ones are not an interior point of a cone)
+            self._has_duals = False
         h = self.h
         t, q, p = self.last()
         free = 0
+        piece = FIRST_PIECE
         while k < n_steps:
+            if self._compiled_run_applies(t, t0 + k * h):
+                # in pieces, as the event-driven steps: the watch looks at each
+                count = min(piece, n_steps - k)
+                if self.longest_piece is not None:
+                    count = min(count, self.longest_piece)
+                piece = min(2 * piece, LONGEST_PIECE)
+                k, status, free = self._compiled_steps(k, t0, count, until_release, free)
+                if status == "released":
+                    return k, True
+                if k >= n_steps:
+                    break
+                t, q, p = self.last()
+                if status == "finished":
+                    continue
+                # handed back: the next step is Python's
             t_next = t0 + (k + 1) * h
             q, p, result, tau = self._through_stepping(t, q, p, t_next, k)
             self.rows(t_next, q, p)
@@ -330,6 +350,50 @@ class _Run:
             if until_release and free >= 2:
                 return k, True
         return k, False
+
+    def _compiled_run_applies(self, t: float, t_grid: float) -> bool:
+        """Whether the steps from ``t`` go through the compiled loop: a compiled stepper
+        and ``t`` on the grid (not an impact's time)."""
+        return self._stepper.addresses is not None and t == t_grid and self.sign > 0
+
+    def _compiled_steps(self, k: int, t0: float, count: int, until_release: bool, free: int):
+        """At most ``count`` steps from grid node k by
+        :func:`galerkin_vi.loops.contact_run.contact_steps`; returns (grid index reached,
+        "released", "finished" or "handed back", free steps).
+
+        Their rows and forces are those :meth:`_through_stepping` records step by step."""
+        from ..loops.contact_run import FINISHED, RELEASED, contact_steps
+
+        stepper, system = self._stepper, self.system
+        n, nc = system.n, len(system.contacts)
+        _, q, p = self.last()
+        q, p = np.array(q, dtype=float), np.array(p, dtype=float)
+        duals = np.array(self._duals, dtype=float)
+        q_out, p_out = np.zeros((count, n)), np.zeros((count, n))
+        normal_out, tangential_out = np.zeros((count, nc)), np.zeros((count, nc, 2))
+        iterations_out, complementarity_out = np.zeros(count), np.zeros(count)
+        stats = np.zeros(4)
+        contact_steps(
+            stepper.addresses, float(t0), k, float(self.h), count, q, p, duals,
+            self._has_duals, *stepper.compiled_layout(),
+            bool(system.structure.quadratic_in_v), bool(until_release), int(free),
+            OPEN_GAP, RELEASED_IMPULSE, q_out, p_out, normal_out, tangential_out,
+            iterations_out, complementarity_out, stats,
+        )  # fmt: skip
+        taken, status, free = int(stats[0]), int(stats[1]), int(stats[2])
+        if taken:
+            starts = t0 + (k + np.arange(taken)) * self.h
+            self.rows(t0 + (k + 1 + np.arange(taken)) * self.h, q_out[:taken], p_out[:taken])
+            width = stepper.tangential_size
+            for i in range(taken):
+                self.forces.append(
+                    (starts[i], normal_out[i], tangential_out[i, :, :width],
+                     int(iterations_out[i]), float(complementarity_out[i]))
+                )  # fmt: skip
+            self._duals, self._has_duals = duals, True
+            self.watched(k + taken)
+        outcome = {RELEASED: "released", FINISHED: "finished"}.get(status, "handed back")
+        return k + taken, outcome, free
 
     def _stepping(self, t: float, q, p, tau: float, k: int, excluded: int | None = None):
         """One complementarity step of length tau (contact ``excluded`` kept apart)."""
@@ -424,7 +488,7 @@ class _Run:
             t, q, p = t_hit, q_hit, p_plus
         else:
             raise self._persists(j, t, k, f"more than {MAX_IMPACTS_PER_STEP} impacts in one step")
-        self._duals = result.duals
+        self._duals, self._has_duals = result.duals, True
         self.forces.append(
             (t, result.normal, result.tangential, result.iterations, result.complementarity)
         )

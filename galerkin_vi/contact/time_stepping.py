@@ -135,6 +135,7 @@ COMPILED_POINTS = (
     "point_slip",
     "point_constraint",
     "point_constraint_jacobian",
+    "point_constraint_rate",
     "point_constraint_hessian",
 )
 
@@ -163,7 +164,7 @@ class ContactStepper:
             else:
                 self.layout.append(ContactStep(size, None))
                 size += 1
-        self._normal = np.array([layout.normal for layout in self.layout])
+        self._normal = np.array([layout.normal for layout in self.layout], dtype=np.int64)
         # the y (and z) index of every slip row, and (first index, normal index, mu) per cone
         self._slip_rows = np.array(
             [
@@ -472,6 +473,21 @@ class ContactStepper:
             return self.compiled_step(t0, h, qk, pk, guess_C, duals, excluded)
         return self.numpy_step(t0, h, qk, pk, guess_C, duals, excluded)
 
+    def compiled_layout(self) -> tuple:
+        """The arguments of the compiled loops from the tables to the restitutions:
+        b, c, Phi, D, d, prm, n, s, m, the layout of y and z (:meth:`compiled_step`),
+        the frictions, the restitutions and the number of declared slip rows."""
+        tb = self.tables
+        tables = tuple(
+            np.ascontiguousarray(a, dtype=float) for a in (tb.b, tb.c, tb.Phi, tb.D, tb.d)
+        )
+        restitution = np.array([c.restitution for c in self.system.contacts], dtype=float)
+        return (
+            *tables, np.ascontiguousarray(self.prm, dtype=float), self.n, tb.d.size - 1,
+            self.system.m, self._normal, self._cone_start, self._cone_length,
+            self._slip_start, self._friction, restitution, self._slip_rows_declared,
+        )  # fmt: skip
+
     def compiled_step(
         self, t0: float, h: float, qk, pk, guess_C, duals, excluded: int | None = None
     ) -> StepResult:
@@ -487,15 +503,17 @@ class ContactStepper:
         y = np.zeros(self.size) if duals is None else np.array(duals, dtype=float)
         z = np.zeros(self.size)
         p_end, stats = np.zeros(n), np.zeros(3)
+        layout = self.compiled_layout()
         contact_step(
             self.addresses, float(t0), float(h), qk, pk, x, y, z, duals is not None,
-            -1 if excluded is None else int(excluded), tb.b, tb.c, tb.Phi, tb.D, tb.d,
-            np.ascontiguousarray(self.prm, dtype=float), n, s, mh, self._normal,
-            self._cone_start, self._cone_length, self._slip_start, self._friction,
-            self._slip_rows_declared, p_end, stats,
+            -1 if excluded is None else int(excluded), *layout[:-2], layout[-1],
+            bool(self.system.structure.quadratic_in_v), p_end, stats,
         )  # fmt: skip
         C = np.vstack([np.zeros((1, n)), x[: s * n].reshape(s, n)])
-        return self._result(t0, h, qk, p_end, C, y, z, int(stats[0]), stats[1], bool(stats[2]))
+        # projected onto the hidden constraint in the compiled step already
+        return self._result(
+            t0, h, qk, p_end, C, y, z, int(stats[0]), stats[1], bool(stats[2]), projected=True
+        )
 
     def numpy_step(
         self, t0: float, h: float, qk, pk, guess_C, duals, excluded: int | None = None
@@ -591,12 +609,14 @@ class ContactStepper:
         return self._result(t0, h, qk, eq[7], eq[8], y, z, iterations, complementarity, converged)
 
     def _result(
-        self, t0, h, qk, p_new, C, y, z, iterations, complementarity, converged
-    ) -> StepResult:
+        self, t0, h, qk, p_new, C, y, z, iterations, complementarity, converged,
+        projected: bool = False,
+    ) -> StepResult:  # fmt: skip
         """The step's result from its solution: the momentum projected onto the hidden
-        constraint, the forces by contact, which frictional contacts stick."""
+        constraint (unless ``projected``), the forces by contact, which frictional
+        contacts stick."""
         s = C.shape[0] - 1
-        if self.system.m and converged:
+        if self.system.m and converged and not projected:
             try:
                 p_new = self._projected(t0 + h, qk + C[s], p_new)
             except ValueError:
