@@ -25,7 +25,12 @@ import numpy as np
 from ..interior_point import RESIDUAL
 from ._jit import called, kernel
 from .contact_step import interior_point_step
-from .contact_velocity import inverse_legendre, project_momentum, saddle_velocity
+from .contact_velocity import (
+    inverse_legendre,
+    project_momentum,
+    saddle_velocity,
+    sliding_impulse,
+)
 from .on_demand import driver
 from .point import point_constraint_jacobian, point_constraint_rate, point_contact, point_slip
 
@@ -200,11 +205,16 @@ def velocity_law(
     r"""The impact law at the velocity level for the contacts that pushed in a step
     (``_Run._velocity_law``), ``p`` updated in place: Newton's law
     :math:`u^+ = -e u^-` for one still approaching at the step's end (frictionless, or
-    sticking: its slip stopped too), then the slip stopped for one that stuck during
-    the step. False where the impact slides (Python's sliding law takes the step) or
-    a Newton iteration fails."""
+    sticking: its slip stopped too; or sliding, :func:`.contact_velocity.sliding_impulse`),
+    then the slip stopped for one that stuck during the step. False where a Newton
+    iteration fails (Python's law takes the step)."""
     nc = normal.shape[0]
     zeros = np.zeros(n)
+    v_minus = np.zeros(n)
+    g = np.zeros(n)
+    T = np.zeros((2, n))
+    w0 = np.zeros(2)
+    out = np.zeros(3)
     for j in range(nc):
         if force[j] * h <= released:
             continue
@@ -215,6 +225,7 @@ def velocity_law(
         u_minus = 0.0
         for a in range(n):
             u_minus += cG[j * n + a] * v[a]
+            v_minus[a] = v[a]
         first = cone[j]
         slips = cone_len[j] - 1 if first >= 0 else 0
         if slips > 0:
@@ -240,15 +251,30 @@ def velocity_law(
             if not saddle_velocity(fn, t, q, p, prm, n, v, Dm, Dm, targets,
                                    rows, lam, work, Lqq, Lqv, Lvv, Fv, K, piv, xs):  # fmt: skip
                 return False
+            sticks = True
             if slips > 0:
                 size = 0.0
                 for e in range(slips):
                     size += lam[1 + e] * lam[1 + e]
-                if not np.sqrt(size) <= mu[j] * lam[0]:
-                    return False  # it slides: Python's sliding law
-            for a in range(n):
-                for i in range(rows):
-                    p[a] += Dm[i, a] * lam[i]
+                sticks = np.sqrt(size) <= mu[j] * lam[0]
+            if sticks:
+                for a in range(n):
+                    for i in range(rows):
+                        p[a] += Dm[i, a] * lam[i]
+            else:
+                # it slides against the slip after: the sliding law, from v^-
+                for a in range(n):
+                    g[a] = cG[j * n + a]
+                for e in range(slips):
+                    row = slip_row[j] + e
+                    w0[e] = w[row]
+                    for a in range(n):
+                        T[e, a] = Wv[row * n + a]
+                if not sliding_impulse(
+                    fn, t, q, p, prm, n, mh, v_minus, g, T, w0, slips,
+                    -restitution[j] * u_minus, mu[j], Gq, gt, out, work, Lqq, Lqv, Lvv, Fv,
+                ):  # fmt: skip
+                    return False
         if slips > 0 and force[j] * h > RESIDUAL and z[first] * h <= RESIDUAL:
             # it stuck during the step: its slip stopped at the end (no constraint rows,
             # as impact.stop_slip)

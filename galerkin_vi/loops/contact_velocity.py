@@ -200,3 +200,191 @@ def project_momentum(fn, t, q, p, prm, n, mh, quadratic):
         for i in range(mh):
             p[a] += Dm[i, a] * lam[i]
     return True
+
+
+#: fixed-point sweeps on the slip direction before Newton (the NumPy law's)
+DIRECTION_SWEEPS = 3
+#: Newton iterations of the sliding law at most
+SLIDING_ITERATIONS = 30
+
+
+@called
+def sliding_impulse(
+    fn, t, q, p, prm, n, mh, v_minus, g, T, w0, slips, target, mu, Gq, gt, out, work, Lqq,
+    Lqv, Lvv, Fv,
+):  # fmt: skip
+    r"""A sliding impact (:func:`galerkin_vi.contact.impact._sliding`): the impulse
+    :math:`\Lambda_n(\nabla\varphi - \mu T^{\mathsf T} d) + \mathcal G^{\mathsf T}\nu` with
+    :math:`d = w^+/|w^+|` the slip direction after, :math:`\nabla\varphi\cdot v^+ =`
+    ``target``; ``p`` updated in place and :math:`(\Lambda_n, \beta)` into ``out``.
+
+    A few fixed-point sweeps on d (exact in the plane) start Newton on the whole system
+    with the exact Jacobian (:math:`\partial d/\partial v = (I - dd^{\mathsf T})T/|w|`) and
+    backtracking on the residual's norm. ``T`` holds the contact's slip rows (``slips``
+    of them), ``w0`` their values at v = 0. False where an iteration fails.
+    """
+    size_all = n + 1 + mh
+    K = np.zeros((size_all, size_all))
+    piv = np.zeros(size_all, dtype=np.int64)
+    xs = np.zeros(size_all)
+    Dm = np.zeros((1 + mh, n))
+    Cm = np.zeros((1 + mh, n))
+    targets = np.zeros(1 + mh)
+    lam = np.zeros(1 + mh)
+    v = np.zeros(n)
+    d = np.zeros(2)
+    slip = np.zeros(2)
+    push = np.zeros(n)
+    residual = np.zeros(size_all)
+    trial_r = np.zeros(size_all)
+    v_trial = np.zeros(n)
+    nu = np.zeros(max(mh, 1))
+    nu_trial = np.zeros(max(mh, 1))
+    Lq = work[0, :n]
+    Lv = work[1, :n]
+
+    def slip_of(v, slip):
+        size = 0.0
+        for e in range(slips):
+            value = w0[e]
+            for a in range(n):
+                value += T[e, a] * v[a]
+            slip[e] = value
+            size += value * value
+        return np.sqrt(size)
+
+    size = slip_of(v_minus, slip)
+    if not size > 0.0:
+        return False
+    for e in range(slips):
+        d[e] = slip[e] / size
+    for a in range(n):
+        v[a] = v_minus[a]
+    for i in range(mh):
+        targets[1 + i] = -gt[i]
+        for a in range(n):
+            Dm[1 + i, a] = Gq[i * n + a]
+            Cm[1 + i, a] = Gq[i * n + a]
+    targets[0] = target
+    for a in range(n):
+        Cm[0, a] = g[a]
+    for _ in range(DIRECTION_SWEEPS):
+        for a in range(n):
+            value = g[a]
+            for e in range(slips):
+                value -= mu * T[e, a] * d[e]
+            Dm[0, a] = value
+        for a in range(n):
+            v[a] = v_minus[a]
+        if not saddle_velocity(fn, t, q, p, prm, n, v, Dm, Cm, targets, 1 + mh, lam, work,
+                               Lqq, Lqv, Lvv, Fv, K, piv, xs):  # fmt: skip
+            return False
+        size = slip_of(v, slip)
+        if size == 0.0 or slips == 1:
+            out[0] = lam[0]
+            for e in range(slips):
+                out[1 + e] = -mu * lam[0] * d[e]
+            for a in range(n):
+                for i in range(1 + mh):
+                    p[a] += Dm[i, a] * lam[i]
+            return True
+        for e in range(slips):
+            d[e] = slip[e] / size
+    normal = lam[0]
+    for i in range(mh):
+        nu[i] = lam[1 + i]
+
+    def equations(v, normal, nu, r, jacobian):
+        size = slip_of(v, slip)
+        for e in range(slips):
+            d[e] = slip[e] / size
+        for a in range(n):
+            value = g[a]
+            for e in range(slips):
+                value -= mu * T[e, a] * d[e]
+            push[a] = value
+        point_hessian(fn, t, q, v, prm, Lq, Lv, Lqq, Lqv, Lvv, Fv)
+        for a in range(n):
+            value = Lv[a] - p[a] - normal * push[a]
+            for i in range(mh):
+                value -= Gq[i * n + a] * nu[i]
+            r[a] = value
+        value = -target
+        for a in range(n):
+            value += g[a] * v[a]
+        r[n] = value
+        for i in range(mh):
+            value = gt[i]
+            for a in range(n):
+                value += Gq[i * n + a] * v[a]
+            r[n + 1 + i] = value
+        if jacobian:
+            for a in range(size_all):
+                for cc in range(size_all):
+                    K[a, cc] = 0.0
+            for a in range(n):
+                for cc in range(n):
+                    # mu normal T^T (I - d d^T) T / |w|
+                    bend = 0.0
+                    for e in range(slips):
+                        for f in range(slips):
+                            proj = (1.0 if e == f else 0.0) - d[e] * d[f]
+                            bend += T[e, a] * proj * T[f, cc]
+                    K[a, cc] = Lvv[a * n + cc] + mu * normal * bend / size
+                K[a, n] = -push[a]
+                K[n, a] = g[a]
+                for i in range(mh):
+                    K[a, n + 1 + i] = -Gq[i * n + a]
+                    K[n + 1 + i, a] = Gq[i * n + a]
+        norm = 0.0
+        for a in range(size_all):
+            norm += r[a] * r[a]
+        return np.sqrt(norm)
+
+    norm = equations(v, normal, nu, residual, True)
+    for _ in range(SLIDING_ITERATIONS):
+        for a in range(size_all):
+            xs[a] = -residual[a]
+        if not lu_factor_inplace(K, piv):
+            return False
+        lu_solve_inplace(K, piv, xs)
+        step = 0.0
+        scale = max(1.0, abs(normal))
+        for a in range(size_all):
+            step = max(step, abs(xs[a]))
+        for a in range(n):
+            scale = max(scale, abs(v[a]))
+        if not step < np.inf:
+            return False
+        if step <= 1e-15 * scale:
+            break
+        alpha = 1.0
+        while True:
+            for a in range(n):
+                v_trial[a] = v[a] + alpha * xs[a]
+            normal_trial = normal + alpha * xs[n]
+            for i in range(mh):
+                nu_trial[i] = nu[i] + alpha * xs[n + 1 + i]
+            new = equations(v_trial, normal_trial, nu_trial, trial_r, False)
+            if new < norm or alpha < 1e-6:
+                break
+            alpha /= 2
+        for a in range(n):
+            v[a] = v_trial[a]
+        normal = normal_trial
+        for i in range(mh):
+            nu[i] = nu_trial[i]
+        norm = equations(v, normal, nu, residual, True)
+    size = slip_of(v, slip)
+    out[0] = normal
+    for e in range(slips):
+        d[e] = slip[e] / size
+        out[1 + e] = -mu * normal * d[e]
+    for a in range(n):
+        value = normal * g[a]
+        for e in range(slips):
+            value += T[e, a] * out[1 + e]
+        for i in range(mh):
+            value += Gq[i * n + a] * nu[i]
+        p[a] += value
+    return True

@@ -227,8 +227,9 @@ class LagrangianSystem:
                     "never satisfied (inconsistent constraints)"
                 )
 
-        #: unilateral contacts (:class:`~galerkin_vi.Contact`); they do not enter the
-        #: point functions: :mod:`galerkin_vi.contact` integrates between and through impacts
+        #: unilateral contacts (:class:`~galerkin_vi.Contact`): their gaps and slips have
+        #: point functions of their own (the compiled contact step's), their restitutions
+        #: and frictions are data; :mod:`galerkin_vi.contact` integrates through impacts
         self.contacts = check_contacts(contacts, q_list, v_list, t, list(params))
         self.L = L
         self.q = tuple(q_list)
@@ -240,7 +241,7 @@ class LagrangianSystem:
         self.constraints = None if constraint_list is None else tuple(constraint_list)
         key = analysis_key(
             L, self.q, self.v, t, self.params, tuple(self.param_defaults), self.forces,
-            self.constraints,
+            self.constraints, tuple((c.gap, c.slip) for c in self.contacts),
         )  # fmt: skip
         #: the hash of the inputs that keys this system's analysis on disk (and its copies
         #: in an executor's workers)
