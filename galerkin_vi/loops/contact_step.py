@@ -78,6 +78,35 @@ __all__ = ["contact_step", "contact_equations", "factor_blocks", "solve_blocks"]
 
 
 # ------------------------------------------------------------------ the equations
+@kernel
+def add_point_force(F, Fy, Fx, p_end, directions, derivatives, row, multiplier, column,
+                    weight, Phi, i, n, s):  # fmt: skip
+    r"""Add a force :math:`y_k\,\partial_v` at quadrature point i (weight :math:`h b_i`):
+    ``multiplier`` :math:`y_k` times the direction ``directions[row n + a]`` (a gap's
+    gradient, a slip's :math:`\partial w/\partial v`) into the stage equations F (the
+    step's end's share into ``p_end``), the direction into column ``column`` of
+    :math:`F_y`, and :math:`y_k` times its derivative in q
+    (``derivatives[(row n + a) n + c]``) into :math:`F_x`."""
+    for nu in range(s + 1):
+        node = weight * Phi[i, nu]
+        for a in range(n):
+            force = node * directions[row * n + a]
+            if nu < s:
+                F[nu * n + a] += multiplier * force
+                Fy[nu * n + a, column] += force
+            else:
+                p_end[a] += multiplier * force
+    for nu in range(s):
+        for mu_ in range(1, s + 1):
+            bend = weight * Phi[i, nu] * Phi[i, mu_] * multiplier
+            if bend != 0.0:
+                for a in range(n):
+                    for cc in range(n):
+                        Fx[nu * n + a, (mu_ - 1) * n + cc] += (
+                            bend * derivatives[(row * n + a) * n + cc]
+                        )
+
+
 @called
 def contact_equations(
     fn, t0, h, qk, pk, x, y, z, b, c, Phi, D, d, prm, n, s, mh, normal, cone, cone_len,
@@ -159,50 +188,14 @@ def contact_equations(
         # the contact forces at the point: lambda grad(phi) and beta^T dw/dv
         for j in range(nc):
             k = normal[j]
-            lam = y[k]
-            for nu in range(s + 1):
-                weight = h * bi * Phi[i, nu]
-                for a in range(n):
-                    force = weight * cG[j * n + a]
-                    if nu < s:
-                        F[nu * n + a] += lam * force
-                        Fy[nu * n + a, k] += force
-                    else:
-                        p_end[a] += lam * force
-            for nu in range(s):
-                for mu_ in range(1, s + 1):
-                    weight = h * bi * Phi[i, nu] * Phi[i, mu_] * lam
-                    if weight != 0.0:
-                        for a in range(n):
-                            for cc in range(n):
-                                Fx[nu * n + a, (mu_ - 1) * n + cc] += (
-                                    weight * cH[(j * n + a) * n + cc]
-                                )
+            add_point_force(F, Fy, Fx, p_end, cG, cH, j, y[k], k, h * bi, Phi, i, n, s)
             first = cone[j]
             if first < 0:
                 continue
             for e in range(cone_len[j] - 1):
                 row = slip_row[j] + e
                 yk = first + 1 + e
-                beta = y[yk]
-                for nu in range(s + 1):
-                    weight = h * bi * Phi[i, nu]
-                    for a in range(n):
-                        force = weight * Wv[row * n + a]
-                        if nu < s:
-                            F[nu * n + a] += beta * force
-                            Fy[nu * n + a, yk] += force
-                        else:
-                            p_end[a] += beta * force
-                for nu in range(s):
-                    for mu_ in range(1, s + 1):
-                        weight = h * bi * Phi[i, nu] * Phi[i, mu_] * beta
-                        if weight != 0.0:
-                            for a in range(n):
-                                for cc in range(n):
-                                    Fx[nu * n + a, (mu_ - 1) * n + cc] += (
-                                        weight * Wvq[(row * n + a) * n + cc]
-                                    )
+                add_point_force(F, Fy, Fx, p_end, Wv, Wvq, row, y[yk], yk, h * bi, Phi, i, n, s)
                 # the mean slip over the step and its derivatives in the control points
                 E[yk] -= bi * w[row]
                 for mu_ in range(1, s + 1):
