@@ -72,6 +72,10 @@ HALVINGS = 2
 CONTACT_MODES = ("auto", "event", "time-stepping")
 #: normal impulses (force times step) below this leave a contact released
 RELEASED_IMPULSE = 1e-12
+#: whether the compiled loop keeps apart the contacts whose gap cannot close within a step
+#: (off: on a resting cube 246 -> 181 us per step, but on the box toss 9.7 -> 17.5
+#: interior-point iterations per step, docs/design-notes.md)
+BROAD_PHASE = False
 #: what is left of a step after an impact at its very end, relative to h, below which it
 #: is a drift, not a complementarity step (whose equations degenerate as tau -> 0)
 REMAINDER = 1e-9
@@ -380,7 +384,7 @@ class _Run:
             stepper.addresses, float(t0), k, float(self.h), count, q, p, duals,
             self._has_duals, *stepper.compiled_layout(),
             bool(system.structure.quadratic_in_v), bool(until_release), int(free),
-            OPEN_GAP, RELEASED_IMPULSE, q_out, p_out, normal_out, tangential_out,
+            OPEN_GAP, RELEASED_IMPULSE, BROAD_PHASE, q_out, p_out, normal_out, tangential_out,
             iterations_out, complementarity_out, stats,
         )  # fmt: skip
         taken, status, free = int(stats[0]), int(stats[1]), int(stats[2])

@@ -34,7 +34,7 @@ from .contact_velocity import (
 from .on_demand import driver
 from .point import point_constraint_jacobian, point_constraint_rate, point_contact, point_slip
 
-__all__ = ["FINISHED", "HANDED_BACK", "RELEASED", "contact_steps"]
+__all__ = ["BROAD_PHASE_MARGIN", "FINISHED", "HANDED_BACK", "RELEASED", "contact_steps"]
 
 #: every step asked for was taken
 FINISHED = 0
@@ -42,6 +42,9 @@ FINISHED = 0
 RELEASED = 1
 #: the next step is Python's (a failed iteration, a first touch, a sliding impact)
 HANDED_BACK = 2
+#: the broad phase keeps a contact apart whose gap exceeds this many times the distance
+#: its normal velocity covers in the step (plus the coordinates' round-off)
+BROAD_PHASE_MARGIN = 4.0
 
 
 @kernel
@@ -58,7 +61,7 @@ def _handed_back(stats, k, free, total):
 def contact_steps(
     fn, t0, k0, h, n_steps, q, p, y, has_duals, b, c, Phi, D, d, prm, n, s, mh, normal, cone,
     cone_len, slip_row, mu, restitution, n_slip, quadratic, until_release, free,
-    open_gap, released, q_out, p_out, normal_out, tangential_out, iterations_out,
+    open_gap, released, broad_phase, q_out, p_out, normal_out, tangential_out, iterations_out,
     complementarity_out, stats,
 ):  # fmt: skip
     r"""Time-stepping steps from grid node ``k0`` (time :math:`t_0 + k_0 h`, state q, p),
@@ -108,9 +111,8 @@ def contact_steps(
     xs = np.zeros(n + rows)
     force = np.zeros(nc)
     total = 0
-    # no contact kept apart: an int64 as from Python, not a literal (one compiled step for
-    # both drivers)
-    none = np.int64(-1)
+    # the contacts kept apart by the broad phase
+    apart = np.zeros(nc, dtype=np.bool_)
     for k in range(n_steps):
         t = t0 + (k0 + k) * h
         t_next = t0 + (k0 + k + 1) * h
@@ -119,8 +121,24 @@ def contact_steps(
         if not inverse_legendre(fn, t, q, p, prm, n, quadratic, v, work, Lqq, Lqv, Lvv, Fv,
                                 K[:n, :n], piv[:n]):  # fmt: skip
             return _handed_back(stats, k, free, total)
+        # broad phase: a contact whose gap cannot close within the step (its gap above
+        # BROAD_PHASE_MARGIN times the distance its normal velocity covers, and above the
+        # coordinates' round-off) is kept apart; if it ends the step closed, the step is
+        # taken again with every contact
+        scale = 1.0
+        for a in range(n):
+            scale = max(scale, abs(q[a]))
+        point_contact(fn, t, q, zeros, prm, cg, cG, cH)
+        for j in range(nc):
+            rate = 0.0
+            for a in range(n):
+                rate += cG[j * n + a] * v[a]
+            reach = BROAD_PHASE_MARGIN * (abs(rate) * tau + open_gap * scale)
+            apart[j] = broad_phase and cg[j] > reach
         converged = False
-        for attempt in range(2):
+        for attempt in range(3):
+            if attempt == 2 or (attempt == 1 and not has_duals):
+                break
             for a in range(nx):
                 x[a] = 0.0
             for nu in range(1, s + 1):
@@ -129,14 +147,45 @@ def contact_steps(
             for i in range(m):
                 y_try[i] = y[i]
             interior_point_step(
-                fn, t, tau, q, p, x, y_try, z, has_duals and attempt == 0, none, b, c, Phi, D, d,
-                prm, n, s, mh, normal, cone, cone_len, slip_row, mu, n_slip, p_end,
+                fn, t, tau, q, p, x, y_try, z, has_duals and attempt == 0, apart, b, c, Phi, D,
+                d, prm, n, s, mh, normal, cone, cone_len, slip_row, mu, n_slip, p_end,
                 step_stats,
             )  # fmt: skip
             total += int(step_stats[0])
             if step_stats[2] > 0.0:
                 converged = True
                 break
+        if converged:
+            # a contact kept apart that ends the step closed: again with every contact
+            closed = False
+            for a in range(n):
+                q_end[a] = q[a] + x[(s - 1) * n + a]
+            point_contact(fn, t_next, q_end, zeros, prm, cg, cG, cH)
+            for j in range(nc):
+                if apart[j] and cg[j] < 0.0:
+                    closed = True
+                    apart[j] = False
+            if closed:
+                for j in range(nc):
+                    apart[j] = False
+                converged = False
+                for attempt in range(2):
+                    for a in range(nx):
+                        x[a] = 0.0
+                    for nu in range(1, s + 1):
+                        for a in range(n):
+                            x[(nu - 1) * n + a] = d[nu] * (tau * v[a])
+                    for i in range(m):
+                        y_try[i] = y[i]
+                    interior_point_step(
+                        fn, t, tau, q, p, x, y_try, z, has_duals and attempt == 0, apart, b, c,
+                        Phi, D, d, prm, n, s, mh, normal, cone, cone_len, slip_row, mu, n_slip,
+                        p_end, step_stats,
+                    )  # fmt: skip
+                    total += int(step_stats[0])
+                    if step_stats[2] > 0.0:
+                        converged = True
+                        break
         if not converged:
             return _handed_back(stats, k, free, total)
         for a in range(n):
@@ -145,9 +194,6 @@ def contact_steps(
         if mh > 0 and not project_momentum(fn, t_next, q_end, p_end, prm, n, mh, quadratic):
             return _handed_back(stats, k, free, total)
         # a contact open at the step's start that pushed was hit inside the step
-        scale = 1.0
-        for a in range(n):
-            scale = max(scale, abs(q[a]))
         point_contact(fn, t, q, zeros, prm, cg, cG, cH)
         pushed = False
         for j in range(nc):

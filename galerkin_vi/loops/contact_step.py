@@ -674,8 +674,11 @@ def contact_step(
     (:func:`galerkin_vi.loops.contact_run.contact_steps`) hands back. With constraints
     (``mh`` > 0) a converged step's ``p_end`` is projected onto the hidden constraint
     (:func:`.contact_velocity.project_momentum`); ``stats[2]`` is 0 where that fails."""
+    apart = np.zeros(normal.shape[0], dtype=np.bool_)
+    if excluded >= 0:
+        apart[excluded] = True
     iterations = interior_point_step(
-        fn, t0, h, qk, pk, x, y, z, has_duals, excluded, b, c, Phi, D, d, prm, n, s, mh,
+        fn, t0, h, qk, pk, x, y, z, has_duals, apart, b, c, Phi, D, d, prm, n, s, mh,
         normal, cone, cone_len, slip_row, mu, n_slip, p_end, stats,
     )  # fmt: skip
     if mh > 0 and stats[2] > 0.0:
@@ -689,7 +692,7 @@ def contact_step(
 
 @called
 def interior_point_step(
-    fn, t0, h, qk, pk, x, y, z, has_duals, excluded, b, c, Phi, D, d, prm, n, s, mh,
+    fn, t0, h, qk, pk, x, y, z, has_duals, apart, b, c, Phi, D, d, prm, n, s, mh,
     normal, cone, cone_len, slip_row, mu, n_slip, p_end, stats,
 ):  # fmt: skip
     r"""One time-stepping step of length h from :math:`(q_k, p_k)`.
@@ -698,7 +701,8 @@ def interior_point_step(
     increments :math:`C^1..C^s` node-major, then the constraints' impulses) and
     receives the solution; ``y`` the starting duals when ``has_duals`` (else the
     cones' centres are taken) and receives the final duals, ``z`` the final
-    slacks; ``excluded`` a contact kept apart (no force), or -1. ``p_end``
+    slacks; ``apart`` marks the contacts kept apart (no force: their y stays 0 and their
+    rows drop out: the first touch's search, the broad phase). ``p_end``
     receives :math:`p_{k+1}` before the constraint's momentum projection;
     ``stats`` (iterations, complementarity, converged).
 
@@ -719,7 +723,7 @@ def interior_point_step(
         first = cone[j]
         if first >= 0:
             e[first] = 1.0
-        if j == excluded:
+        if apart[j]:
             fixed[k] = True
             if first >= 0:
                 for a in range(cone_len[j]):
