@@ -135,26 +135,11 @@ def contact_steps(
                 rate += cG[j * n + a] * v[a]
             reach = BROAD_PHASE_MARGIN * (abs(rate) * tau + open_gap * scale)
             apart[j] = broad_phase and cg[j] > reach
-        converged = False
-        for attempt in range(3):
-            if attempt == 2 or (attempt == 1 and not has_duals):
-                break
-            for a in range(nx):
-                x[a] = 0.0
-            for nu in range(1, s + 1):
-                for a in range(n):
-                    x[(nu - 1) * n + a] = d[nu] * (tau * v[a])
-            for i in range(m):
-                y_try[i] = y[i]
-            interior_point_step(
-                fn, t, tau, q, p, x, y_try, z, has_duals and attempt == 0, apart, b, c, Phi, D,
-                d, prm, n, s, mh, normal, cone, cone_len, slip_row, mu, n_slip, p_end,
-                step_stats,
-            )  # fmt: skip
-            total += int(step_stats[0])
-            if step_stats[2] > 0.0:
-                converged = True
-                break
+        converged, its = step_from_both_starts(
+            fn, t, tau, q, p, v, x, y, y_try, z, has_duals, apart, b, c, Phi, D, d, prm, n, s,
+            mh, normal, cone, cone_len, slip_row, mu, n_slip, p_end, step_stats,
+        )  # fmt: skip
+        total += its
         if converged:
             # a contact kept apart that ends the step closed: again with every contact
             closed = False
@@ -168,24 +153,12 @@ def contact_steps(
             if closed:
                 for j in range(nc):
                     apart[j] = False
-                converged = False
-                for attempt in range(2):
-                    for a in range(nx):
-                        x[a] = 0.0
-                    for nu in range(1, s + 1):
-                        for a in range(n):
-                            x[(nu - 1) * n + a] = d[nu] * (tau * v[a])
-                    for i in range(m):
-                        y_try[i] = y[i]
-                    interior_point_step(
-                        fn, t, tau, q, p, x, y_try, z, has_duals and attempt == 0, apart, b, c,
-                        Phi, D, d, prm, n, s, mh, normal, cone, cone_len, slip_row, mu, n_slip,
-                        p_end, step_stats,
-                    )  # fmt: skip
-                    total += int(step_stats[0])
-                    if step_stats[2] > 0.0:
-                        converged = True
-                        break
+                converged, its = step_from_both_starts(
+                    fn, t, tau, q, p, v, x, y, y_try, z, has_duals, apart, b, c, Phi, D, d,
+                    prm, n, s, mh, normal, cone, cone_len, slip_row, mu, n_slip, p_end,
+                    step_stats,
+                )  # fmt: skip
+                total += its
         if not converged:
             return _handed_back(stats, k, free, total)
         for a in range(n):
@@ -240,6 +213,38 @@ def contact_steps(
     stats[2] = free
     stats[3] = total
     return FINISHED
+
+
+@called
+def step_from_both_starts(
+    fn, t, tau, q, p, v, x, y, y_try, z, has_duals, apart, b, c, Phi, D, d, prm, n, s, mh,
+    normal, cone, cone_len, slip_row, mu, n_slip, p_end, step_stats,
+):  # fmt: skip
+    """The step from (q, p) over tau, guessed as a straight motion at velocity v: from the
+    last step's duals ``y`` (when ``has_duals``), and failing that from the cones'
+    centres. Returns (converged, interior-point iterations of every attempt); the step's
+    solution in ``x``, ``y_try``, ``z``, ``p_end`` and ``step_stats``."""
+    m = y.shape[0]
+    nx = x.shape[0]
+    iterations = 0
+    for attempt in range(2):
+        if attempt == 1 and not has_duals:
+            break  # the first attempt started from the centres already
+        for a in range(nx):
+            x[a] = 0.0
+        for nu in range(1, s + 1):
+            for a in range(n):
+                x[(nu - 1) * n + a] = d[nu] * (tau * v[a])
+        for i in range(m):
+            y_try[i] = y[i]
+        interior_point_step(
+            fn, t, tau, q, p, x, y_try, z, has_duals and attempt == 0, apart, b, c, Phi, D, d,
+            prm, n, s, mh, normal, cone, cone_len, slip_row, mu, n_slip, p_end, step_stats,
+        )  # fmt: skip
+        iterations += int(step_stats[0])
+        if step_stats[2] > 0.0:
+            return True, iterations
+    return False, iterations
 
 
 @called

@@ -663,6 +663,23 @@ def refine(
     return True
 
 
+@called
+def direction(
+    F, E, rC, Fx, Fy, Ex, P, Q, u, v, normal, cone, cone_len, mu, fixed, N, Npiv, M, R, Rpiv,
+    dx, dy, dz, nx, rhs, rF, rE, rR, cx, cy, cz, t1, t2, t3,
+):  # fmt: skip
+    """The Newton direction for the complementarity right-hand side ``rC``: the blockwise
+    solve (:func:`solve_blocks`) and one refinement (:func:`refine`); False if not finite."""
+    if not solve_blocks(
+        F, E, rC, Fy, normal, cone, cone_len, fixed, N, Npiv, M, R, Rpiv, dx, dy, dz, nx, rhs
+    ):  # fmt: skip
+        return False
+    return refine(
+        F, E, rC, Fx, Fy, Ex, P, Q, u, v, normal, cone, cone_len, mu, fixed, N, Npiv, M, R,
+        Rpiv, dx, dy, dz, nx, rhs, rF, rE, rR, cx, cy, cz, t1, t2, t3,
+    )  # fmt: skip
+
+
 # --------------------------------------------------------------------- the step
 @driver
 def contact_step(
@@ -847,10 +864,7 @@ def interior_point_step(
         jordan(u, v, rC, normal, cone, cone_len)
         for k in range(m):
             rC[k] = 0.0 if fixed[k] else -rC[k]
-        if not solve_blocks(
-            F, E, rC, Fy, normal, cone, cone_len, fixed, N, Npiv, M, R, Rpiv, dx_a, dy_a,
-            dz_a, nx, rhs,
-        ) or not refine(
+        if not direction(
             F, E, rC, Fx, Fy, Ex, P, Qs, u, v, normal, cone, cone_len, mu, fixed, N, Npiv, M,
             R, Rpiv, dx_a, dy_a, dz_a, nx, rhs, rF, rE, rR, cx, cy, cz, tmp, tmp2, second,
         ):  # fmt: skip
@@ -874,10 +888,7 @@ def interior_point_step(
         jordan(tmp, tmp2, second, normal, cone, cone_len)
         for k in range(m):
             rC[k] = 0.0 if fixed[k] else rC[k] - (second[k] - kappa * e[k])
-        if not solve_blocks(
-            F, E, rC, Fy, normal, cone, cone_len, fixed, N, Npiv, M, R, Rpiv, dx, dy, dz, nx,
-            rhs,
-        ) or not refine(
+        if not direction(
             F, E, rC, Fx, Fy, Ex, P, Qs, u, v, normal, cone, cone_len, mu, fixed, N, Npiv, M,
             R, Rpiv, dx, dy, dz, nx, rhs, rF, rE, rR, cx, cy, cz, tmp, tmp2, second,
         ):  # fmt: skip
