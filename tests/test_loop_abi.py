@@ -210,6 +210,24 @@ def test_users_numba_code_compiles_with_numbas_originals_after_multibody_runs():
     assert result == dict.fromkeys(result, True) and len(result) == 10
 
 
+def test_users_numba_code_compiles_with_numbas_originals_after_compiled_contact_steps():
+    # the time-stepping contact loop and its single step (a ball landing with friction: a
+    # first touch handed back to Python, then steps in the loop): nothing stays installed
+    result = _originals_after(
+        """
+        x, y, vx, vy = sp.symbols("x y vx vy")
+        ball = gvi.LagrangianSystem(
+            (vx**2 + vy**2) / 2 - 9.81 * y, [x, y], [vx, vy],
+            contacts=[gvi.Contact(y, friction=0.5, slip=[vx])],
+        )
+        run = gvi.Integrator(ball, gvi.Galerkin(1)).integrate(
+            [0.0, 0.004], [0.5, -1.0], h=0.01, n_steps=5, contact_mode="time-stepping")
+        assert run.success and run.contact_forces is not None
+        """
+    )
+    assert result == dict.fromkeys(result, True) and len(result) == 10
+
+
 def test_users_numba_code_compiles_with_numbas_originals_after_issue_30_runs():
     # a composition and its tangent loop, scatter-loop point functions of springs between
     # scattered pairs, and an adaptive run with the persistent fixed point: nothing stays

@@ -113,6 +113,7 @@ def contact_steps(
     total = 0
     # the contacts kept apart by the broad phase
     apart = np.zeros(nc, dtype=np.bool_)
+    gap_start = np.zeros(nc)
     for k in range(n_steps):
         t = t0 + (k0 + k) * h
         t_next = t0 + (k0 + k + 1) * h
@@ -130,6 +131,7 @@ def contact_steps(
             scale = max(scale, abs(q[a]))
         point_contact(fn, t, q, zeros, prm, cg, cG, cH)
         for j in range(nc):
+            gap_start[j] = cg[j]  # also for the first touch's test below
             rate = 0.0
             for a in range(n):
                 rate += cG[j * n + a] * v[a]
@@ -167,13 +169,12 @@ def contact_steps(
         if mh > 0 and not project_momentum(fn, t_next, q_end, p_end, prm, n, mh, quadratic):
             return _handed_back(stats, k, free, total)
         # a contact open at the step's start that pushed was hit inside the step
-        point_contact(fn, t, q, zeros, prm, cg, cG, cH)
         pushed = False
         for j in range(nc):
             force[j] = y_try[normal[j]]
             if force[j] * tau > released:
                 pushed = True
-                if cg[j] > open_gap * scale:
+                if gap_start[j] > open_gap * scale:
                     return _handed_back(stats, k, free, total)
         if pushed:
             if not velocity_law(

@@ -121,8 +121,6 @@ def contact_equations(
     impulses), filled here.
     """
     r = b.shape[0]
-    sn = s * n
-    nx = sn + s * mh
     nc = normal.shape[0]
     F[:] = 0.0
     Fx[:, :] = 0.0
@@ -224,7 +222,6 @@ def contact_equations(
     for k in range(E.shape[0]):
         if fixed[k]:
             E[k] = 0.0
-    return nx
 
 
 @called
