@@ -82,11 +82,16 @@ def _compare(numpy_stepper, compiled_stepper, t, h, q, p, guess, duals, excluded
     got = compiled_stepper.step(t, h, q, p, guess, duals, excluded)
     assert ref.converged and got.converged
     scale = 1.0 + np.abs(ref.p).max()
-    np.testing.assert_allclose(got.q, ref.q, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(got.p, ref.p, rtol=0, atol=1e-11 * scale)
+    # both solved to the stopping rule, their Newton systems eliminated in different
+    # orders: not the same iterates, and a momentum residual of RESIDUAL turns a light
+    # cube's quaternion by h / I times it
+    np.testing.assert_allclose(got.q, ref.q, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(got.p, ref.p, rtol=0, atol=1e-10 * scale)
     impulse = h * (1.0 + np.abs(ref.normal).max())
-    np.testing.assert_allclose(got.normal * h, ref.normal * h, rtol=0, atol=1e-9 * impulse)
-    np.testing.assert_allclose(got.tangential * h, ref.tangential * h, rtol=0, atol=1e-9 * impulse)
+    # a sliding spatial contact's force direction converges as the square root of the
+    # duality gap (the vector part of z o y): its last digits follow the iterates
+    np.testing.assert_allclose(got.normal * h, ref.normal * h, rtol=0, atol=1e-7 * impulse)
+    np.testing.assert_allclose(got.tangential * h, ref.tangential * h, rtol=0, atol=1e-7 * impulse)
     np.testing.assert_array_equal(got.sticking, ref.sticking)
     # (the iteration counts may differ: where the iterates near the cones' boundary the
     # round-off of the two solves decides the line searches, 18 against 50 seen)
@@ -150,15 +155,15 @@ def test_a_run_compiled_and_in_numpy_takes_the_same_steps():
         )
     compiled, reference = runs["numba"], runs["numpy"]
     assert compiled.success and reference.success
-    np.testing.assert_allclose(compiled.q, reference.q, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(compiled.p, reference.p, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(compiled.q, reference.q, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(compiled.p, reference.p, rtol=0, atol=1e-9)
     # at rest after v / (mu g) = 0.38 s, on the straight line of its first velocity
     assert np.abs(compiled.p[-1]).max() < 1e-12
     along = compiled.q[-1, [0, 2]] @ np.array([1.0, 0.5]) / np.hypot(1.0, 0.5)
     assert along == pytest.approx(1.25 / (2 * 0.3 * G), abs=0.3 * G * 0.01**2)
     forces_c, forces_r = compiled.contact_forces, reference.contact_forces
-    np.testing.assert_allclose(forces_c.normal, forces_r.normal, rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(forces_c.tangential, forces_r.tangential, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(forces_c.normal, forces_r.normal, rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(forces_c.tangential, forces_r.tangential, rtol=1e-7, atol=1e-10)
 
 
 def test_an_ensemble_with_contacts_runs_the_compiled_step_in_threads():
@@ -188,8 +193,12 @@ def test_a_tumbling_cube_runs_compiled_as_in_numpy():
     assert not compiled.impacts and not reference.impacts
     np.testing.assert_allclose(compiled.q, reference.q, rtol=0, atol=1e-10)
     np.testing.assert_allclose(compiled.p, reference.p, rtol=0, atol=1e-10)
+    # the resultant normal force per step (once on its face, how four corners share the
+    # load is left open by the equations: each stepper picks its own split)
     forces_c, forces_r = compiled.contact_forces, reference.contact_forces
-    np.testing.assert_allclose(forces_c.normal, forces_r.normal, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(
+        forces_c.normal.sum(axis=1), forces_r.normal.sum(axis=1), rtol=0, atol=1e-7
+    )
 
 
 def test_a_tumbling_cube_comes_to_rest_on_a_face_at_its_height():
@@ -219,8 +228,10 @@ def test_the_broad_phase_keeps_far_corners_apart_and_changes_nothing(monkeypatch
     monkeypatch.setattr(runs, "BROAD_PHASE", True)
     broad = integrator.integrate(q0, v0, **run)
     assert everything.success and broad.success
-    np.testing.assert_allclose(broad.q, everything.q, rtol=0, atol=1e-10)
-    np.testing.assert_allclose(broad.p, everything.p, rtol=0, atol=1e-10)
+    # to the stopping rule's accuracy (a light cube's quaternion: h / I times the momentum
+    # residual per step), over 20 steps of tipping
+    np.testing.assert_allclose(broad.q, everything.q, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(broad.p, everything.p, rtol=0, atol=1e-9)
     upper = [j for j in range(8) if j % 2 == 0]  # the corners with +a in z: never touch
     # kept apart by the loop's broad phase: no force at all (the first step is Python's:
     # the loop starts from the second)

@@ -59,8 +59,9 @@ __all__ = [
 ]
 
 _PACKAGE = Path(__file__).resolve().parent.parent
-# every source a compiled loop is made of (the slot table: its numbers are compiled in)
-_SOURCES = ("newton.py", "loops", "codegen/slots.py")
+# every source a compiled loop is made of (the slot table and the interior point's
+# tolerances: their numbers are compiled in)
+_SOURCES = ("newton.py", "interior_point.py", "loops", "codegen/slots.py")
 # modules of the loops' folder that decide when and where to compile, not what
 _NOT_COMPILED = frozenset({"on_demand.py", "readiness.py"})
 

@@ -20,20 +20,15 @@ linear algebra differs.
 
 with :math:`A_y = (P z)\circ(Q\,\cdot)`, :math:`A_z = (Q y)\circ(P\,\cdot)`.
 :math:`E_y`, :math:`E_z`, :math:`A_y`, :math:`A_z` couple only the entries of one
-contact (its gap and its cone), so each contact's :math:`(dy_c, dz_c)` solves a
-system :math:`N_c` of at most 8 unknowns,
-
-.. math::
-
-    \begin{pmatrix} dy_c \\ dz_c \end{pmatrix}
-    = N_c^{-1}\begin{pmatrix} r_{E,c} \\ r_{C,c} \end{pmatrix}
-    - N_c^{-1}\begin{pmatrix} E_{x,c} \\ 0 \end{pmatrix} dx
-    = a_c - M_c\,dx,
-
-and the stage unknowns solve :math:`(F_x - \sum_c F_{y,c} M^y_c)\,dx = r_F - \sum_c
-F_{y,c} a^y_c`: a system of the size of the stage equations (8 unknowns for a
-cube in quaternions at Galerkin(1)) instead of the full one (72 with eight
-frictional corners). The corrector reuses every factorisation.
+contact (its gap and its cone), and the slacks' definitions are unit rows (a gap's
+slack, a cone's bound :math:`y_f = \mu\lambda`, its slips), so each contact's
+:math:`(dy_c, dz_c) = a_c - M_c\,dx` follows from its gap's complementarity row (a
+scalar) and its cone's rows (a system of the cone's size, at most 3;
+:func:`factor_blocks`), and the stage unknowns solve :math:`(F_x - \sum_c F_{y,c}
+M^y_c)\,dx = r_F - \sum_c F_{y,c} a^y_c`: a system of the size of the stage
+equations (8 unknowns for a cube in quaternions at Galerkin(1)) instead of the
+full one (72 with eight frictional corners). The corrector reuses every
+factorisation; its direction gets one step of iterative refinement (:func:`refine`).
 
 The gaps, slips and their derivatives come from the system's generated point
 functions (``point_contact``, ``point_slip``), the stage equations from
@@ -477,11 +472,24 @@ def measures(F, E, z, y, normal, cone, cone_len, fixed, scale, tolerance, out, w
 # ------------------------------------------------------------ the Newton system
 @called
 def factor_blocks(
-    Fx, Fy, Ex, z, y, P, Q, normal, cone, cone_len, mu, fixed, N, Npiv, M, R, Rpiv, u, v, nx
+    Fx, Fy, Ex, z, y, P, Q, normal, cone, cone_len, mu, fixed, K, Kpiv, M, R, Rpiv, u, v, nx
 ):  # fmt: skip
-    r"""Factorise each contact's :math:`N_c`, form :math:`M_c = N_c^{-1}(E_{x,c}; 0)` and
-    the reduced matrix :math:`R = F_x - \sum_c F_{y,c} M^y_c`, and factorise R.
-    False when a factorisation is singular."""
+    r"""Eliminate each contact's :math:`(dy_c, dz_c) = a_c - M_c\,dx` and factorise the
+    reduced matrix :math:`R = F_x - \sum_c F_{y,c} M^y_c`. False when a block or R is
+    singular.
+
+    The slacks' definitions are unit rows: the gap's :math:`dz_k = -E_k - E_{x,k}\,dx`,
+    a cone's :math:`dy_f = \mu\,dy_k - E_f` (its bound) and
+    :math:`dz_{f+e} = -E_{f+e} - E_{x,f+e}\,dx` (its slips). The gap's
+    complementarity row then gives :math:`dy_k = (r_k + v_k P_k E_k)/(u_k Q_k) +
+    g_k E_{x,k}\,dx`, :math:`g_k = v_k P_k / (u_k Q_k)`, and the cone's rows
+    :math:`A_y\,dy + A_z\,dz = r` (:math:`A_y = \operatorname{arrow}(u) Q`,
+    :math:`A_z = \operatorname{arrow}(v) P`) leave the unknowns
+    :math:`w = (dy_{f+1}, \dots, dz_f)` in a system :math:`K w = \dots` of the
+    cone's size (at most 3), :math:`K = (A_y[:, 1:], A_z[:, 0])`, factorised in
+    ``K[j, :, :L]``; ``K[j, :, L]`` keeps :math:`A_y[:, 0]` and ``K[j, :, L+1:]``
+    :math:`A_z[:, 1:]` for :func:`solve_blocks`. ``M[j]`` holds the rows of
+    :math:`M_c` in the block's order (gap, cone entries; dy, then dz)."""
     scaled(P, z, u, normal, cone, cone_len)
     scaled(Q, y, v, normal, cone, cone_len)
     for a in range(nx):
@@ -492,59 +500,54 @@ def factor_blocks(
         if fixed[k]:
             continue
         first = cone[j]
-        L = 1 + (cone_len[j] if first >= 0 else 0)
-        Nj = N[j, : 2 * L, : 2 * L]
-        Nj[:, :] = 0.0
-        # the block's entries: the gap's row, then the cone's rows
-        for a in range(L):
-            ka = k if a == 0 else first + a - 1
-            # slacks' definitions: E_y dy + E_z dz
-            if first >= 0 and ka == first:
-                Nj[a, a] = 1.0  # E = y0 - mu lambda
-                Nj[a, 0] = -mu[j]
-            else:
-                Nj[a, L + a] = 1.0
-            # complementarity: (P z) o (Q dy) + (Q y) o (P dz), blockwise
-            if a == 0:
-                Nj[L, 0] = u[k] * Q[k, 0]
-                Nj[L, L] = v[k] * P[k, 0]
-        if first >= 0:
-            Lc = cone_len[j]
-            for a in range(Lc):
-                row = L + 1 + a
-                for bb in range(Lc):
-                    # arrow(u) Q and arrow(v) P restricted to the cone
-                    acc_y = 0.0
-                    acc_z = 0.0
-                    for e in range(Lc):
-                        if a == 0:
-                            arrow_u = u[first + e]
-                            arrow_v = v[first + e]
-                        elif e == 0:
-                            arrow_u = u[first + a]
-                            arrow_v = v[first + a]
-                        elif e == a:
-                            arrow_u = u[first]
-                            arrow_v = v[first]
-                        else:
-                            arrow_u = 0.0
-                            arrow_v = 0.0
-                        acc_y += arrow_u * Q[first + e, bb]
-                        acc_z += arrow_v * P[first + e, bb]
-                    Nj[row, 1 + bb] = acc_y
-                    Nj[row, L + 1 + bb] = acc_z
-        if not lu_factor(Nj, Npiv[j, : 2 * L]):
-            return False
+        Lc = cone_len[j] if first >= 0 else 0
+        L = 1 + Lc
         Mj = M[j]
+        dk = u[k] * Q[k, 0]
+        if not (dk != 0.0 and abs(dk) < np.inf):
+            return False
+        gk = v[k] * P[k, 0] / dk
         for col in range(nx):
-            column = Mj[: 2 * L, col]
-            for a in range(L):
-                ka = k if a == 0 else first + a - 1
-                column[a] = Ex[ka, col]
-            for a in range(L, 2 * L):
-                column[a] = 0.0
-            lu_solve(Nj, Npiv[j, : 2 * L], column)
+            Mj[0, col] = -gk * Ex[k, col]
+            Mj[L, col] = Ex[k, col]
+        if first >= 0:
+            Kj = K[j]
+            for a in range(Lc):
+                for bb in range(Lc):
+                    # (arrow(u) Q)[a, bb] and (arrow(v) P)[a, bb]
+                    if a == 0:
+                        ay = 0.0
+                        az = 0.0
+                        for e in range(Lc):
+                            ay += u[first + e] * Q[first + e, bb]
+                            az += v[first + e] * P[first + e, bb]
+                    else:
+                        ay = u[first + a] * Q[first, bb] + u[first] * Q[first + a, bb]
+                        az = v[first + a] * P[first, bb] + v[first] * P[first + a, bb]
+                    if bb == 0:
+                        Kj[a, Lc - 1] = az
+                        Kj[a, Lc] = ay
+                    else:
+                        Kj[a, bb - 1] = ay
+                        Kj[a, Lc + bb] = az
+            if not lu_factor(Kj[:Lc, :Lc], Kpiv[j, :Lc]):
+                return False
+            column = Kj[:Lc, 7]
+            for col in range(nx):
+                Mj[1, col] = mu[j] * Mj[0, col]  # the bound: dy_f = mu dy_k - E_f
+                for a in range(Lc):
+                    acc = Kj[a, Lc] * Mj[1, col]
+                    for e in range(1, Lc):
+                        acc += Kj[a, Lc + e] * Ex[first + e, col]
+                    column[a] = -acc
+                lu_solve(Kj[:Lc, :Lc], Kpiv[j, :Lc], column)
+                for e in range(1, Lc):
+                    Mj[1 + e, col] = column[e - 1]
+                    Mj[L + 1 + e, col] = Ex[first + e, col]
+                Mj[L + 1, col] = column[Lc - 1]
         for a in range(L):
+            if a == 1:
+                continue  # the bound's column of F_y is zero
             ka = k if a == 0 else first + a - 1
             for row in range(nx):
                 f = Fy[row, ka]
@@ -556,10 +559,13 @@ def factor_blocks(
 
 @called
 def solve_blocks(
-    F, E, rC, Fy, normal, cone, cone_len, fixed, N, Npiv, M, R, Rpiv, dx, dy, dz, nx, rhs
+    F, E, rC, Fy, u, v, P, Q, normal, cone, cone_len, mu, fixed, K, Kpiv, M, R, Rpiv, dx, dy,
+    dz, nx, rhs,
 ):  # fmt: skip
     r"""The Newton direction for the right-hand sides :math:`-F`, :math:`-E`, ``rC`` (the
-    complementarity rows) with the factors of :func:`factor_blocks`; False if not finite."""
+    complementarity rows) with the factors of :func:`factor_blocks`: each block's
+    :math:`a_c` (its gap's and cone's rows solved at dx = 0), then dx from R, then
+    :math:`(dy_c, dz_c) = a_c - M_c\,dx`; False if not finite."""
     for a in range(nx):
         dx[a] = -F[a]
     for j in range(normal.shape[0]):
@@ -567,14 +573,29 @@ def solve_blocks(
         if fixed[k]:
             continue
         first = cone[j]
-        L = 1 + (cone_len[j] if first >= 0 else 0)
-        aj = rhs[j, : 2 * L]
+        Lc = cone_len[j] if first >= 0 else 0
+        L = 1 + Lc
+        aj = rhs[j]
+        aj[0] = (rC[k] + v[k] * P[k, 0] * E[k]) / (u[k] * Q[k, 0])
+        aj[L] = -E[k]
+        if first >= 0:
+            Kj = K[j]
+            aj[1] = mu[j] * aj[0] - E[first]
+            for e in range(1, Lc):
+                aj[L + 1 + e] = -E[first + e]
+            column = Kj[:Lc, 7]
+            for a in range(Lc):
+                acc = rC[first + a] - Kj[a, Lc] * aj[1]
+                for e in range(1, Lc):
+                    acc -= Kj[a, Lc + e] * aj[L + 1 + e]
+                column[a] = acc
+            lu_solve(Kj[:Lc, :Lc], Kpiv[j, :Lc], column)
+            for e in range(1, Lc):
+                aj[1 + e] = column[e - 1]
+            aj[L + 1] = column[Lc - 1]
         for a in range(L):
-            ka = k if a == 0 else first + a - 1
-            aj[a] = -E[ka]
-            aj[L + a] = rC[ka]
-        lu_solve(N[j, : 2 * L, : 2 * L], Npiv[j, : 2 * L], aj)
-        for a in range(L):
+            if a == 1:
+                continue
             ka = k if a == 0 else first + a - 1
             for row in range(nx):
                 dx[row] -= Fy[row, ka] * aj[a]
@@ -591,7 +612,7 @@ def solve_blocks(
             continue
         first = cone[j]
         L = 1 + (cone_len[j] if first >= 0 else 0)
-        aj = rhs[j, : 2 * L]
+        aj = rhs[j]
         Mj = M[j]
         for a in range(L):
             ka = k if a == 0 else first + a - 1
@@ -649,7 +670,8 @@ def refine(
         rE[k] = 0.0 if fixed[k] else -rE[k]
         rR[k] = 0.0 if fixed[k] else rC[k] - t2[k] - t3[k]
     if not solve_blocks(
-        rF, rE, rR, Fy, normal, cone, cone_len, fixed, N, Npiv, M, R, Rpiv, cx, cy, cz, nx, rhs
+        rF, rE, rR, Fy, u, v, P, Q, normal, cone, cone_len, mu, fixed, N, Npiv, M, R, Rpiv,
+        cx, cy, cz, nx, rhs,
     ):  # fmt: skip
         return False
     for a in range(nx):
@@ -663,14 +685,18 @@ def refine(
 @called
 def direction(
     F, E, rC, Fx, Fy, Ex, P, Q, u, v, normal, cone, cone_len, mu, fixed, N, Npiv, M, R, Rpiv,
-    dx, dy, dz, nx, rhs, rF, rE, rR, cx, cy, cz, t1, t2, t3,
+    dx, dy, dz, nx, rhs, rF, rE, rR, cx, cy, cz, t1, t2, t3, refined,
 ):  # fmt: skip
     """The Newton direction for the complementarity right-hand side ``rC``: the blockwise
-    solve (:func:`solve_blocks`) and one refinement (:func:`refine`); False if not finite."""
+    solve (:func:`solve_blocks`) and, when ``refined``, one refinement (:func:`refine`; the
+    predictor, which only sets the centring, goes without); False if not finite."""
     if not solve_blocks(
-        F, E, rC, Fy, normal, cone, cone_len, fixed, N, Npiv, M, R, Rpiv, dx, dy, dz, nx, rhs
+        F, E, rC, Fy, u, v, P, Q, normal, cone, cone_len, mu, fixed, N, Npiv, M, R, Rpiv,
+        dx, dy, dz, nx, rhs,
     ):  # fmt: skip
         return False
+    if not refined:
+        return True
     return refine(
         F, E, rC, Fx, Fy, Ex, P, Q, u, v, normal, cone, cone_len, mu, fixed, N, Npiv, M, R,
         Rpiv, dx, dy, dz, nx, rhs, rF, rE, rR, cx, cy, cz, t1, t2, t3,
@@ -769,8 +795,8 @@ def interior_point_step(
     pe_t = np.zeros(n)
     P = np.zeros((m, 4))
     Qs = np.zeros((m, 4))
-    N = np.zeros((nc, 8, 8))
-    Npiv = np.zeros((nc, 8), dtype=np.int64)
+    N = np.zeros((nc, 4, 8))
+    Npiv = np.zeros((nc, 4), dtype=np.int64)
     M = np.zeros((nc, 8, nx))
     rhs = np.zeros((nc, 8))
     R = np.zeros((nx, nx))
@@ -863,7 +889,7 @@ def interior_point_step(
             rC[k] = 0.0 if fixed[k] else -rC[k]
         if not direction(
             F, E, rC, Fx, Fy, Ex, P, Qs, u, v, normal, cone, cone_len, mu, fixed, N, Npiv, M,
-            R, Rpiv, dx_a, dy_a, dz_a, nx, rhs, rF, rE, rR, cx, cy, cz, tmp, tmp2, second,
+            R, Rpiv, dx_a, dy_a, dz_a, nx, rhs, rF, rE, rR, cx, cy, cz, tmp, tmp2, second, False,
         ):  # fmt: skip
             break
         alpha = min(
@@ -887,7 +913,7 @@ def interior_point_step(
             rC[k] = 0.0 if fixed[k] else rC[k] - (second[k] - kappa * e[k])
         if not direction(
             F, E, rC, Fx, Fy, Ex, P, Qs, u, v, normal, cone, cone_len, mu, fixed, N, Npiv, M,
-            R, Rpiv, dx, dy, dz, nx, rhs, rF, rE, rR, cx, cy, cz, tmp, tmp2, second,
+            R, Rpiv, dx, dy, dz, nx, rhs, rF, rE, rR, cx, cy, cz, tmp, tmp2, second, True,
         ):  # fmt: skip
             break
         complementarity = now[3]
