@@ -236,3 +236,48 @@ def test_the_broad_phase_keeps_far_corners_apart_and_changes_nothing(monkeypatch
     # kept apart by the loop's broad phase: no force at all (the first step is Python's:
     # the loop starts from the second)
     assert np.abs(broad.contact_forces.normal[1:, upper]).max() == 0.0
+
+
+@pytest.mark.parametrize(("restitution", "friction"), [(0.0, 0.0), (0.6, 0.0), (0.5, 0.3)])
+def test_first_touches_are_cut_out_of_the_steps_in_the_compiled_loop(
+    monkeypatch, restitution, friction
+):
+    # a puck dropped at an angle onto the floor: each touch falls inside a step, which the
+    # loop cuts at the touch (regula falsi on steps keeping the contact apart), applying
+    # the impact law there (frictionless, or sticking/sliding) and taking the rest again;
+    # no step goes back to Python, and the impacts are those of the NumPy step's run
+    x, y, z, vx, vy, vz = sp.symbols("x y z vx vy vz")
+    L = (vx**2 + vy**2 + vz**2) / 2 - G * y
+    contact = gvi.Contact(
+        y, restitution=restitution, friction=friction, slip=[vx, vz] if friction else None
+    )
+    system = gvi.LagrangianSystem(L, [x, y, z], [vx, vy, vz], contacts=[contact])
+    run = {"h": 0.01, "n_steps": 80, "contact_mode": "time-stepping"}
+    start = ([0.0, 0.3, 0.0], [1.0, -0.4, 0.5])
+    reference = gvi.Integrator(system, gvi.Galerkin(1), backend="numpy").integrate(*start, **run)
+    calls = []
+    original = ContactStepper.compiled_step
+
+    def counted(self, *args, **kwargs):
+        calls.append(args[0])
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(ContactStepper, "compiled_step", counted)
+    compiled = gvi.Integrator(system, gvi.Galerkin(1)).integrate(*start, **run)
+    assert compiled.success and reference.success
+    # the first step is Python's (the loop starts on the grid from the second)
+    assert len(calls) <= 1
+    assert len(compiled.impacts) == len(reference.impacts) >= 1
+    for got, want in zip(compiled.impacts, reference.impacts, strict=True):
+        assert got.contact == want.contact and got.mode == want.mode
+        assert got.t == pytest.approx(want.t, abs=1e-12)
+        assert got.normal_impulse == pytest.approx(want.normal_impulse, rel=1e-9)
+        np.testing.assert_allclose(got.normal_velocity, want.normal_velocity, atol=1e-9)
+        assert got.energy_lost == pytest.approx(want.energy_lost, rel=1e-8, abs=1e-12)
+    # Newton's law at the first touch, u+ = -e u-, with the exact time of a free fall
+    first = compiled.impacts[0]
+    assert first.normal_velocity[1] == pytest.approx(-restitution * first.normal_velocity[0])
+    assert first.t == pytest.approx((-0.4 + np.sqrt(0.16 + 2 * G * 0.3)) / G, abs=1e-12)
+    np.testing.assert_allclose(compiled.t, reference.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(compiled.q, reference.q, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(compiled.p, reference.p, rtol=0, atol=1e-10)

@@ -368,7 +368,8 @@ class _Run:
         :func:`galerkin_vi.loops.contact_run.contact_steps`; returns (grid index reached,
         "released", "finished" or "handed back", free steps).
 
-        Their rows and forces are those :meth:`_through_stepping` records step by step."""
+        Their rows, forces and impacts are those :meth:`_through_stepping` records step by
+        step (the first touches cut out of the steps in the loop too)."""
         from ..loops.contact_run import FINISHED, RELEASED, contact_steps
 
         stepper, system = self._stepper, self.system
@@ -376,31 +377,65 @@ class _Run:
         _, q, p = self.last()
         q, p = np.array(q, dtype=float), np.array(p, dtype=float)
         duals = np.array(self._duals, dtype=float)
-        q_out, p_out = np.zeros((count, n)), np.zeros((count, n))
-        normal_out, tangential_out = np.zeros((count, nc)), np.zeros((count, nc, 2))
-        iterations_out, complementarity_out = np.zeros(count), np.zeros(count)
-        stats = np.zeros(4)
+        room = 2 * count + 2 * MAX_IMPACTS_PER_STEP + 1
+        row_t, row_grid = np.zeros(room), np.zeros(room, dtype=np.bool_)
+        row_q, row_p = np.zeros((room, n)), np.zeros((room, n))
+        force_t, normal_out = np.zeros(room), np.zeros((room, nc))
+        tangential_out = np.zeros((room, nc, 2))
+        iterations_out, complementarity_out = np.zeros(room), np.zeros(room)
+        impact_data = np.zeros((count + MAX_IMPACTS_PER_STEP, 8))
+        stats = np.zeros(7)
         contact_steps(
             stepper.addresses, float(t0), k, float(self.h), count, q, p, duals,
             self._has_duals, *stepper.compiled_layout(),
             bool(system.structure.quadratic_in_v), bool(until_release), int(free),
-            OPEN_GAP, RELEASED_IMPULSE, BROAD_PHASE, q_out, p_out, normal_out, tangential_out,
-            iterations_out, complementarity_out, stats,
+            OPEN_GAP, RELEASED_IMPULSE, BROAD_PHASE, REMAINDER, MAX_IMPACTS_PER_STEP,
+            row_t, row_q, row_p, row_grid, force_t, normal_out, tangential_out,
+            iterations_out, complementarity_out, impact_data, stats,
         )  # fmt: skip
         taken, status, free = int(stats[0]), int(stats[1]), int(stats[2])
-        if taken:
-            starts = t0 + (k + np.arange(taken)) * self.h
-            self.rows(t0 + (k + 1 + np.arange(taken)) * self.h, q_out[:taken], p_out[:taken])
-            width = stepper.tangential_size
-            for i in range(taken):
-                self.forces.append(
-                    (starts[i], normal_out[i], tangential_out[i, :, :width],
-                     int(iterations_out[i]), float(complementarity_out[i]))
-                )  # fmt: skip
+        rows, forces, impacts = int(stats[4]), int(stats[5]), int(stats[6])
+        self._rows_in_order(row_t[:rows], row_q[:rows], row_p[:rows], row_grid[:rows])
+        width = stepper.tangential_size
+        for i in range(forces):
+            self.forces.append(
+                (force_t[i], normal_out[i], tangential_out[i, :, :width],
+                 int(iterations_out[i]), float(complementarity_out[i]))
+            )  # fmt: skip
+        for record in impact_data[:impacts]:
+            self.impacts.append(self._impact(record, row_t, row_q, row_p))
+        if forces:
             self._duals, self._has_duals = duals, True
-            self.watched(k + taken)
+        self.watched(k + taken)
         outcome = {RELEASED: "released", FINISHED: "finished"}.get(status, "handed back")
         return k + taken, outcome, free
+
+    def _rows_in_order(self, t, q, p, grid) -> None:
+        """Rows of the compiled loop: runs of grid rows and impacts' pairs, in order."""
+        start = 0
+        for end in range(1, t.size + 1):
+            if end == t.size or grid[end] != grid[start]:
+                self.rows(t[start:end], q[start:end], p[start:end], grid=bool(grid[start]))
+                start = end
+
+    def _impact(self, record, row_t, row_q, row_p) -> Impact:
+        """The :class:`Impact` of a row of the compiled loop's ``impact_data``."""
+        row, j, mode = int(record[0]), int(record[1]), int(record[2])
+        layout = self._stepper.layout[j]
+        slips = 0 if layout.cone is None else layout.cone.stop - layout.cone.start - 1
+        q = row_q[row]
+        H = self.system.hamiltonian(
+            np.vstack([q, q]), np.vstack([row_p[row], row_p[row + 1]]), row_t[row], self.params
+        )
+        return Impact(
+            t=float(row_t[row]),
+            contact=j,
+            normal_impulse=float(record[3]),
+            tangential_impulse=np.array(record[4 : 4 + slips], dtype=float),
+            mode=("frictionless", "stick", "slide")[mode],
+            normal_velocity=(float(record[6]), float(record[7])),
+            energy_lost=float(H[0] - H[1]),
+        )
 
     def _stepping(self, t: float, q, p, tau: float, k: int, excluded: int | None = None):
         """One complementarity step of length tau (contact ``excluded`` kept apart)."""
