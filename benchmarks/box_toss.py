@@ -6,7 +6,10 @@ thrown from (0, -1, 1) m with velocity (0, 3, 1) m/s and angular velocity
 friction mu and no restitution. galerkin_vi: Galerkin(1), quaternions, the
 time-stepping contact step compiled (``backend="numba"``) and, with ``--numpy``,
 the same run with the NumPy step (``backend="numpy"``): the same steps, so their
-ratio is the compiled loop's gain. MuJoCo (``pip install -e ".[bench]"``): a free
+ratio is the compiled loop's gain; with ``--modes`` the contact modes (``auto``:
+the flights between isolated impacts by the smooth loop, each impact located by
+events; ``time-stepping``: every step in the compiled contact loop, the touches
+cut out of the steps there). MuJoCo (``pip install -e ".[bench]"``): a free
 box with an elliptic cone, ``mj_step`` in C at the same h; its contact is soft.
 
 Each row: whether the run reached 5 s, how far from rest it ends (the largest
@@ -21,7 +24,7 @@ Usage::
 
     python benchmarks/box_toss.py                 # mu 0.1, 0.4, 0.8; h 0.01, 0.005
     python benchmarks/box_toss.py --numpy         # with the NumPy step (minutes)
-    python benchmarks/box_toss.py --frictions 0.4 --steps 0.01
+    python benchmarks/box_toss.py --frictions 0.4 --steps 0.01 --modes time-stepping
 """
 
 from __future__ import annotations
@@ -51,7 +54,7 @@ def cube_system(friction: float) -> gvi.Multibody:
     return gvi.Multibody([cube], gravity=[0, 0, -G], contacts=contacts)
 
 
-def galerkin_run(friction: float, h: float, backend: str, repeats: int) -> dict:
+def galerkin_run(friction: float, h: float, backend: str, repeats: int, mode: str) -> dict:
     mb = cube_system(friction)
     q0, v0 = mb.state(
         positions={"box": START["position"]},
@@ -66,7 +69,9 @@ def galerkin_run(friction: float, h: float, backend: str, repeats: int) -> dict:
         start = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            traj = integrator.integrate(q0, v0=v0, h=h, n_steps=n_steps, on_failure="warn")
+            traj = integrator.integrate(
+                q0, v0=v0, h=h, n_steps=n_steps, on_failure="warn", contact_mode=mode
+            )
         best = min(best, time.perf_counter() - start) if _ else np.inf
     motion = mb.motion(traj, "box")
     tail = motion.t >= motion.t[-1] - 0.1
@@ -128,6 +133,10 @@ def main(argv=None) -> int:
     parser.add_argument("--steps", type=float, nargs="+", default=[0.01, 0.005])
     parser.add_argument("--numpy", action="store_true", help="also the NumPy step (slow)")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument(
+        "--modes", nargs="+", default=["auto", "time-stepping"],
+        help="galerkin_vi's contact modes (auto: isolated impacts located by events in flight)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     print(
         "| mu | h | run | reached 5 s | end max abs v | end max abs omega | height - a |"
@@ -137,9 +146,14 @@ def main(argv=None) -> int:
     for friction in args.frictions:
         for h in args.steps:
             peer = mujoco_run(friction, h, args.repeats)
-            runs = [("galerkin_vi", galerkin_run(friction, h, "numba", args.repeats))]
+            runs = [
+                (f"galerkin_vi {mode}", galerkin_run(friction, h, "numba", args.repeats, mode))
+                for mode in args.modes
+            ]
             if args.numpy:
-                runs.append(("galerkin_vi NumPy step", galerkin_run(friction, h, "numpy", 1)))
+                runs.append(
+                    ("galerkin_vi NumPy step", galerkin_run(friction, h, "numpy", 1, args.modes[0]))
+                )
             if peer is not None:
                 runs.append(("MuJoCo (soft contact)", peer))
             for name, row in runs:

@@ -49,7 +49,7 @@ __all__ = [
 FINISHED = 0
 #: two steps in a row without contact force (``until_release``)
 RELEASED = 1
-#: the next step is Python's (a failed iteration, a first touch, a sliding impact)
+#: the next step is Python's (a failed iteration, a drift, too many cuts, a failed Newton)
 HANDED_BACK = 2
 #: the broad phase keeps a contact apart whose gap exceeds this many times the distance
 #: its normal velocity covers in the step (plus the coordinates' round-off)
