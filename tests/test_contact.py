@@ -442,3 +442,42 @@ def test_the_rimless_wheel_walks_onto_its_limit_cycle():
     np.testing.assert_allclose(omegas[:, 1] / omegas[:, 0], r, rtol=1e-4)
     distance = np.abs(-omegas[:, 0] - before)
     assert distance[-1] < 1e-3 and distance[-1] < distance[0] / 50
+
+
+@pytest.mark.parametrize("contact_mode", ["auto", "time-stepping"])
+def test_a_gap_without_a_normal_where_it_closes_stops_the_run_and_says_so(contact_mode):
+    # y**3 closes at y = 0 with a zero gradient: no direction for the contact's force or
+    # its impact law; the run stops there, keeps the flight, and names the contact
+    L = vy**2 / 2 - G * y
+    system = gvi.LagrangianSystem(L, [y], [vy], contacts=[gvi.Contact(y**3)])
+    integrator = gvi.Integrator(system, gvi.Galerkin(2))
+    with pytest.warns(gvi.RunFailureWarning):
+        traj = integrator.integrate(
+            [0.2], [0.0], h=0.01, n_steps=40, on_failure="warn", contact_mode=contact_mode
+        )
+    assert not traj.success
+    assert "contacts[0] (gap y**3)" in traj.message and "no normal" in traj.message
+    fall = np.sqrt(2 * 0.2 / G)
+    flight = traj.t <= fall
+    np.testing.assert_allclose(traj.q[flight, 0], 0.2 - G * traj.t[flight] ** 2 / 2, atol=1e-12)
+    assert np.all(traj.q[:, 0] >= 0.0)
+    if contact_mode == "auto":  # the impact law at the touch: stopped there
+        assert fall - 0.02 < traj.t[-1] <= fall + 1e-9
+    else:  # the steps hold it just above y = 0 with ever larger forces (the gradient
+        # 3 y^2 shrinks), until the gradient vanishes where the contact closes
+        assert traj.t[-1] < fall + 0.1
+
+
+def test_a_gap_that_stops_being_finite_stops_the_run_and_says_so():
+    # a floor sqrt(1 - x^2) - y defined for |x| < 1 only: sliding past x = 1 its gap is NaN
+    x, vx = sp.symbols("x vx")
+    L = (vx**2 + vy**2) / 2
+    system = gvi.LagrangianSystem(
+        L, [x, y], [vx, vy], contacts=[gvi.Contact(y + 2 - sp.sqrt(1 - x**2))]
+    )
+    integrator = gvi.Integrator(system, gvi.Galerkin(1))
+    with pytest.warns(gvi.RunFailureWarning):
+        traj = integrator.integrate([0.0, 0.0], [1.0, 0.0], h=0.01, n_steps=200, on_failure="warn")
+    assert not traj.success and traj.status == gvi.RunStatus.NON_FINITE
+    assert "contacts[0]" in traj.message and "its gap is nan" in traj.message
+    assert np.all(np.abs(traj.q[:, 0]) < 1.0)

@@ -79,6 +79,9 @@ BROAD_PHASE = False
 #: what is left of a step after an impact at its very end, relative to h, below which it
 #: is a drift, not a complementarity step (whose equations degenerate as tau -> 0)
 REMAINDER = 1e-9
+#: a gap whose gradient where it closes is this many times smaller than at the run's
+#: start has no normal there (y**3 at y = 0): the run stops and says so
+NORMAL_VANISHES = 1e-8
 
 
 def compiled_step_addresses(integrator):
@@ -146,6 +149,11 @@ def integrate_with_contacts(
         if options.terminal:
             run.longest_piece = FIRST_PIECE  # so that the run stops soon after the event
     run.rows(t0, q, p)
+    # the size of each gap's gradient at the start: where one closes with a gradient
+    # NORMAL_VANISHES times smaller, it has no normal
+    run.normal_scale = np.array(
+        [np.linalg.norm(functions.gradient(j, t0, q, prm)) for j in range(len(system.contacts))]
+    )
     stop = _drive(run, t0, n_steps, contact_mode)
     completed = (RunStatus.COMPLETED, RunStatus.COMPLETED.cause)
     traj = run.trajectory(*(stop.outcome if stop is not None else completed))
@@ -274,6 +282,8 @@ class _Run:
         self.iterations = 0
         self.forces: list[tuple[float, NDArray, NDArray, int, float]] = []
         self._stepper = None
+        #: each gap's gradient's size at the run's start (:meth:`check_normal`)
+        self.normal_scale = np.zeros(len(self.system.contacts))
         self._duals = None
         self._has_duals = False
 
@@ -390,8 +400,8 @@ class _Run:
             self._has_duals, *stepper.compiled_layout(),
             bool(system.structure.quadratic_in_v), bool(until_release), int(free),
             OPEN_GAP, RELEASED_IMPULSE, BROAD_PHASE, REMAINDER, MAX_IMPACTS_PER_STEP,
-            row_t, row_q, row_p, row_grid, force_t, normal_out, tangential_out,
-            iterations_out, complementarity_out, impact_data, stats,
+            NORMAL_VANISHES * self.normal_scale, row_t, row_q, row_p, row_grid, force_t,
+            normal_out, tangential_out, iterations_out, complementarity_out, impact_data, stats,
         )  # fmt: skip
         taken, status, free = int(stats[0]), int(stats[1]), int(stats[2])
         rows, forces, impacts = int(stats[4]), int(stats[5]), int(stats[6])
@@ -441,6 +451,7 @@ class _Run:
         """One complementarity step of length tau (contact ``excluded`` kept apart)."""
         result = self._attempt(t, q, p, tau, excluded, HALVINGS)
         if not result.converged:
+            self._check_geometry(t, q, k)
             raise _Stop(
                 RunStatus.NO_CONVERGENCE,
                 f"step {k} (t = {t:.6g}): the contact step's interior-point iteration did not "
@@ -450,6 +461,17 @@ class _Run:
                 k, t,
             )  # fmt: skip
         return result
+
+    def _check_geometry(self, t: float, q, k: int) -> None:
+        """A failed step's cause in the contacts at its start, if there: a gap that is
+        not finite, or a closed contact without a normal (:meth:`check_normal`)."""
+        scale = max(1.0, float(np.max(np.abs(q))))
+        for j in range(len(self.system.contacts)):
+            gap = self.functions.gap(j, t, q, self.prm)
+            if not np.isfinite(gap):
+                raise self._geometry(j, t, q, k, f"its gap is {gap}")
+            if gap <= OPEN_GAP * scale:
+                self.check_normal(j, t, q)
 
     def _attempt(self, t: float, q, p, tau: float, excluded: int | None, halvings: int):
         """A step of length tau from the last step's forces; failing that, from the
@@ -519,6 +541,7 @@ class _Run:
                  touching.complementarity)
             )  # fmt: skip
             q_hit, p_minus = touching.q, touching.p
+            self.check_normal(j, t_hit, q_hit)
             v_hit = self.system.inverse_legendre(q_hit, p_minus, t_hit, self.params)
             if self.functions.gradient(j, t_hit, q_hit, self.prm) @ v_hit >= 0.0:
                 # grazed, not hit: the gap closes at the cut while it opens already (the
@@ -614,6 +637,7 @@ class _Run:
         for j, impulse_j in enumerate(impulses):
             if impulse_j <= RELEASED_IMPULSE:
                 continue
+            self.check_normal(j, t, q)
             v = self.system.inverse_legendre(q, p, t, self.params)
             if self.functions.gradient(j, t, q, self.prm) @ v < 0.0:
                 # part of the persistent contact, not an impact of its own: not listed
@@ -735,6 +759,7 @@ class _Run:
         Forward in time the impact law; backwards its inverse (the run meets the
         post-impact state first).
         """
+        self.check_normal(j, t, q)
         if self.sign > 0:
             return impulse(self.system, self.functions, j, t, q, p, self.prm)
         return inverse_impulse(self.system, self.functions, j, t, q, p, self.prm)
@@ -745,7 +770,13 @@ class _Run:
         t = t_first + self.h * np.arange(len(q))
         bound = -PENETRATION * np.maximum(1.0, np.abs(q).max(axis=1))
         for j in range(len(self.system.contacts)):
-            inside = np.flatnonzero(self.functions.gaps_at(j, t, q, self.prm) < bound)
+            gaps = self.functions.gaps_at(j, t, q, self.prm)
+            broken = np.flatnonzero(~np.isfinite(gaps))
+            if broken.size:
+                r = int(broken[0])
+                self._drop_after(t[r] - self.h)
+                raise self._geometry(j, t[r], q[r], step_first + r - 1, f"its gap is {gaps[r]}")
+            inside = np.flatnonzero(gaps < bound)
             if inside.size:
                 r = int(inside[0])
                 gap = self.functions.gap(j, t[r], q[r], self.prm)
@@ -765,6 +796,30 @@ class _Run:
         """The contact whose event stopped the smooth run ``end``."""
         stop = end.t[-1]
         return next(j for j, te in enumerate(end.t_events) if te.size and te[-1] == stop)
+
+    def _geometry(self, j: int, t: float, q, step: int, detail: str) -> _Stop:
+        """The stop where contact j's gap or its gradient cannot be used at (t, q)."""
+        contact = self.system.contacts[j]
+        status = RunStatus.NON_FINITE if "gap is" in detail else RunStatus.SINGULAR_JACOBIAN
+        where = np.array2string(np.asarray(q, dtype=float), precision=6)
+        message = (
+            f"step {step} (t = {t:.6g}): contacts[{j}] (gap {contact.gap}) at q = {where}: "
+            f"{detail}; the states before are kept"
+        )
+        return _Stop(status, message, step, t)
+
+    def check_normal(self, j: int, t: float, q) -> None:
+        """Stop the run where contact j closes without a normal: its gap's gradient is
+        not finite or zero there, so its force and its impact law have no direction."""
+        g = self.functions.gradient(j, t, q, self.prm)
+        if np.all(np.isfinite(g)) and np.linalg.norm(g) > NORMAL_VANISHES * self.normal_scale[j]:
+            return
+        step = int(np.floor((t - self._t[0][0]) / self.h * (1 + 4 * np.finfo(float).eps)))
+        raise self._geometry(
+            j, t, q, step,
+            f"its gap's gradient is {g} where it closes: the contact has no normal there "
+            "(write the gap so that its gradient is finite and nonzero on the surface)",
+        )  # fmt: skip
 
     def _persists(self, j: int, t: float, step: int, detail: str) -> _Stop:
         contact = self.system.contacts[j]

@@ -102,7 +102,8 @@ def _add_forces(force_t, normal_out, tangential_out, iterations_out, complementa
 def contact_steps(
     fn, t0, k0, h, n_steps, q, p, y, has_duals, b, c, Phi, D, d, prm, n, s, mh, normal, cone,
     cone_len, slip_row, mu, restitution, n_slip, quadratic, until_release, free,
-    open_gap, released, broad_phase, remainder, max_cuts, row_t, row_q, row_p, row_grid,
+    open_gap, released, broad_phase, remainder, max_cuts, normal_floor, row_t, row_q, row_p,
+    row_grid,
     force_t, normal_out, tangential_out, iterations_out, complementarity_out, impact_data,
     stats,
 ):  # fmt: skip
@@ -125,8 +126,10 @@ def contact_steps(
     fit. ``free`` counts the steps without contact force before the first;
     ``open_gap``, ``released``, ``remainder`` and ``max_cuts`` are
     :mod:`galerkin_vi.contact.runs`' ``OPEN_GAP``, ``RELEASED_IMPULSE``, ``REMAINDER``
-    and ``MAX_IMPACTS_PER_STEP``. ``stats`` receives (grid steps taken, status, the
-    count of free steps, interior-point iterations, rows, force records, impacts).
+    and ``MAX_IMPACTS_PER_STEP``; a contact that pushes where its gradient's size is not
+    above ``normal_floor`` hands the step back. ``stats`` receives (grid steps taken,
+    status, the count of free steps, interior-point iterations, rows, force records,
+    impacts).
     """
     nc = normal.shape[0]
     m = y.shape[0]
@@ -357,9 +360,16 @@ def contact_steps(
             n_rows += 1
         # the step's end: the forces of its last part, the impact law at the velocity level
         pushed = False
+        point_contact(fn, t_next, q_end, zeros, prm, cg, cG, cH)
         for j in range(nc):
             if force[j] * tau > released:
                 pushed = True
+                size = 0.0
+                for a in range(n):
+                    size += cG[j * n + a] * cG[j * n + a]
+                if not np.sqrt(size) > normal_floor[j]:
+                    # no normal where it pushes: Python's step stops the run and says so
+                    return _stop(stats, k, HANDED_BACK, free, total, n_rows, n_forces, n_impacts)
         if pushed:
             if not velocity_law(
                 fn, t_next, q_end, p_end, prm, n, mh, quadratic, force, tau, released, z,
