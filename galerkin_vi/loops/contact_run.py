@@ -98,6 +98,19 @@ def _add_forces(force_t, normal_out, tangential_out, iterations_out, complementa
     complementarity_out[i] = step_stats[1]
 
 
+@kernel
+def _copy_step(q, p, y, z, stats, q_to, p_to, y_to, z_to, stats_to):
+    """A step's solution (end state, duals, slacks, statistics) copied."""
+    for a in range(q.shape[0]):
+        q_to[a] = q[a]
+        p_to[a] = p[a]
+    for i in range(y.shape[0]):
+        y_to[i] = y[i]
+        z_to[i] = z[i]
+    for i in range(stats.shape[0]):
+        stats_to[i] = stats[i]
+
+
 @driver
 def contact_steps(
     fn, t0, k0, h, n_steps, q, p, y, has_duals, b, c, Phi, D, d, prm, n, s, mh, normal, cone,
@@ -221,14 +234,8 @@ def contact_steps(
                     opened = True
             if not opened:
                 break
-            for a in range(n):
-                q_full[a] = q_end[a]
-                p_full[a] = p_end[a]
-            for i in range(m):
-                y_full[i] = y_try[i]
-                z_full[i] = z[i]
-            for i in range(3):
-                stats_full[i] = step_stats[i]
+            _copy_step(q_end, p_end, y_try, z, step_stats, q_full, p_full, y_full, z_full,
+                       stats_full)  # fmt: skip
             best = np.inf
             hit = -1
             resting = False
@@ -236,28 +243,18 @@ def contact_steps(
                 if not (gap_start[j] > open_gap * scale and force[j] * tau > released):
                     continue
                 # the step length alpha at whose end its gap is zero, on steps keeping it
-                # apart (Illinois regula falsi)
-                converged, its = advance(
-                    fn, t, tau, q, p, j, v, x, y, y_try, z, has_duals, apart, gap_start, b,
-                    c, Phi, D, d, prm, n, s, mh, normal, cone, cone_len, slip_row, mu, n_slip,
-                    quadratic, open_gap, broad_phase, scale, q_end, p_end, step_stats, work,
-                    Lqq, Lqv, Lvv, Fv, cg, cG, cH, K, piv,
-                )  # fmt: skip
-                total += its
-                if not converged:
-                    return _stop(stats, k, HANDED_BACK, free, total, n_rows, n_forces,
-                                 n_impacts)  # fmt: skip
-                point_contact(fn, t + tau, q_end, zeros, prm, cg, cG, cH)
-                if not cg[j] < 0.0:
-                    continue  # it would not have closed without its force: no impact
+                # apart: the whole step first (no impact unless it closes there), then
+                # Illinois regula falsi
                 lo = 0.0
                 hi = tau
                 f_lo = gap_start[j]
-                f_hi = cg[j]
+                f_hi = 0.0
                 side = 0
                 alpha = tau
-                for _ in range(60):
-                    alpha = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+                closes = False
+                for trial in range(61):
+                    if trial > 0:
+                        alpha = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
                     converged, its = advance(
                         fn, t, alpha, q, p, j, v, x, y, y_try, z, has_duals, apart, gap_start,
                         b, c, Phi, D, d, prm, n, s, mh, normal, cone, cone_len, slip_row, mu,
@@ -270,6 +267,12 @@ def contact_steps(
                                      n_impacts)  # fmt: skip
                     point_contact(fn, t + alpha, q_end, zeros, prm, cg, cG, cH)
                     f = cg[j]
+                    if trial == 0:
+                        closes = f < 0.0
+                        f_hi = f
+                        if not closes:
+                            break  # it would not have closed without its force: no impact
+                        continue
                     if abs(f) <= 4 * 2.220446049250313e-16 * scale or hi - lo <= 4e-16 * tau:
                         break
                     if f > 0:
@@ -284,6 +287,8 @@ def contact_steps(
                         if side == -1:
                             f_lo /= 2
                         side = -1
+                if not closes:
+                    continue
                 if alpha <= 1e-12 * tau:
                     resting = True  # closing at the step's start: a resting contact
                     break
@@ -299,14 +304,8 @@ def contact_steps(
                         stats_hit[i] = step_stats[i]
             if resting or hit < 0:
                 # no cut: the whole step stands
-                for a in range(n):
-                    q_end[a] = q_full[a]
-                    p_end[a] = p_full[a]
-                for i in range(m):
-                    y_try[i] = y_full[i]
-                    z[i] = z_full[i]
-                for i in range(3):
-                    step_stats[i] = stats_full[i]
+                _copy_step(q_full, p_full, y_full, z_full, stats_full, q_end, p_end, y_try, z,
+                           step_stats)  # fmt: skip
                 for j in range(nc):
                     force[j] = y_try[normal[j]]
                 break
