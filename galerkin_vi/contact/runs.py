@@ -469,7 +469,7 @@ class _Run:
         for j in range(len(self.system.contacts)):
             gap = self.functions.gap(j, t, q, self.prm)
             if not np.isfinite(gap):
-                raise self._geometry(j, t, q, k, f"its gap is {gap}")
+                raise self._geometry(j, t, q, k, f"its gap is {gap}", RunStatus.NON_FINITE)
             if gap <= OPEN_GAP * scale:
                 self.check_normal(j, t, q)
 
@@ -775,7 +775,10 @@ class _Run:
             if broken.size:
                 r = int(broken[0])
                 self._drop_after(t[r] - self.h)
-                raise self._geometry(j, t[r], q[r], step_first + r - 1, f"its gap is {gaps[r]}")
+                raise self._geometry(
+                    j, t[r], q[r], step_first + r - 1, f"its gap is {gaps[r]}",
+                    RunStatus.NON_FINITE,
+                )  # fmt: skip
             inside = np.flatnonzero(gaps < bound)
             if inside.size:
                 r = int(inside[0])
@@ -797,10 +800,9 @@ class _Run:
         stop = end.t[-1]
         return next(j for j, te in enumerate(end.t_events) if te.size and te[-1] == stop)
 
-    def _geometry(self, j: int, t: float, q, step: int, detail: str) -> _Stop:
+    def _geometry(self, j: int, t: float, q, step: int, detail: str, status: RunStatus) -> _Stop:
         """The stop where contact j's gap or its gradient cannot be used at (t, q)."""
         contact = self.system.contacts[j]
-        status = RunStatus.NON_FINITE if "gap is" in detail else RunStatus.SINGULAR_JACOBIAN
         where = np.array2string(np.asarray(q, dtype=float), precision=6)
         message = (
             f"step {step} (t = {t:.6g}): contacts[{j}] (gap {contact.gap}) at q = {where}: "
@@ -810,7 +812,8 @@ class _Run:
 
     def check_normal(self, j: int, t: float, q) -> None:
         """Stop the run where contact j closes without a normal: its gap's gradient is
-        not finite or zero there, so its force and its impact law have no direction."""
+        not finite there, or NORMAL_VANISHES times smaller than at the run's start, so its
+        force and its impact law have no direction."""
         g = self.functions.gradient(j, t, q, self.prm)
         if np.all(np.isfinite(g)) and np.linalg.norm(g) > NORMAL_VANISHES * self.normal_scale[j]:
             return
@@ -819,6 +822,7 @@ class _Run:
             j, t, q, step,
             f"its gap's gradient is {g} where it closes: the contact has no normal there "
             "(write the gap so that its gradient is finite and nonzero on the surface)",
+            RunStatus.SINGULAR_JACOBIAN,
         )  # fmt: skip
 
     def _persists(self, j: int, t: float, step: int, detail: str) -> _Stop:
