@@ -38,10 +38,16 @@ __all__ = [
     "impulse",
     "inverse_impulse",
     "irreversible_contacts",
+    "simultaneous_impulse",
     "stop_slip",
 ]
 
 _NEWTON_ITERATIONS = 30
+#: sweeps of a simultaneous impact's Gauss-Seidel at most
+SWEEPS = 500
+#: the largest change of an impulse in a sweep, relative to the largest impulse, at
+#: which a simultaneous impact is settled
+SETTLED = 1e-13
 _DIRECTION_SWEEPS = 3
 
 
@@ -145,15 +151,21 @@ class ContactFunctions:
         return T, self.at(self.slips[0], t, q, zero, prm)[rows]
 
 
-def impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) -> tuple:
+def impulse(
+    system, functions: ContactFunctions, j: int, t: float, q, p, prm, target: float | None = None
+) -> tuple:
     """The momentum after an impact of contact ``j`` at ``(t, q)`` with momentum ``p``.
 
-    Returns ``(p_plus, impact)`` with ``impact`` an :class:`Impact`.
+    Returns ``(p_plus, impact)`` with ``impact`` an :class:`Impact`. ``target`` is the
+    normal velocity after the impact, :math:`-e\\,u^-` unless given (the law of a
+    simultaneous impact, :func:`simultaneous_impulse`, sets it from the velocity
+    before the whole impact).
 
     Raises
     ------
     ValueError
-        When the contact is not approaching (:math:`u^- \\ge 0`): no impact.
+        When the contact is not approaching (:math:`u^- \\ge 0`, or not below
+        ``target``): no impact.
     """
     contact = system.contacts[j]
     params = dict(zip(system.params, prm, strict=True))
@@ -161,12 +173,12 @@ def impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) ->
     v_minus = system.inverse_legendre(q, p, t, params)
     g = functions.gradient(j, t, q, prm)
     u_minus = float(g @ v_minus)
-    if not u_minus < 0.0:
+    if not u_minus < (0.0 if target is None else target):
         raise ValueError(f"contact {j} at t = {t}: not approaching (normal velocity {u_minus})")
-    e = contact.restitution
+    goal = -contact.restitution * u_minus if target is None else target
     slip = functions.slip_matrix(j, t, q, prm)
     if slip is None:
-        D, targets = _with_constraints(system, t, q, prm, g[None], [-e * u_minus])
+        D, targets = _with_constraints(system, t, q, prm, g[None], [goal])
         v_plus, lam = _solve(system, t, q, p, v_minus, prm, D, D, targets)
         mode, tangential = "frictionless", np.zeros(0)
         p_plus = p + D.T @ lam
@@ -174,9 +186,7 @@ def impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) ->
         rows, w0 = slip
         k = 1 + rows.shape[0]
         # sticking: the slip stopped as well
-        G, targets = _with_constraints(
-            system, t, q, prm, np.vstack([g, rows]), [-e * u_minus, *(-w0)]
-        )
+        G, targets = _with_constraints(system, t, q, prm, np.vstack([g, rows]), [goal, *(-w0)])
         v_plus, lam = _solve(system, t, q, p, v_minus, prm, G, G, targets)
         if np.linalg.norm(lam[1:k]) <= contact.friction * lam[0]:
             mode, tangential = "stick", lam[1:k]
@@ -184,7 +194,7 @@ def impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) ->
         else:
             mode = "slide"
             v_plus, normal, tangential, reaction = _sliding(
-                system, t, q, p, v_minus, prm, g, rows, w0, -e * u_minus, contact.friction
+                system, t, q, p, v_minus, prm, g, rows, w0, goal, contact.friction
             )
             p_plus = p + normal * g + rows.T @ tangential + reaction
             lam = np.array([normal])
@@ -199,6 +209,84 @@ def impulse(system, functions: ContactFunctions, j: int, t: float, q, p, prm) ->
         energy_lost=float(H[0] - H[1]),
     )
     return p_plus, impact
+
+
+def simultaneous_impulse(
+    system, functions: ContactFunctions, hit: list[int], t: float, q, p, prm
+) -> tuple:
+    r"""The momentum after contacts ``hit`` are hit at once at ``(t, q)`` (a face landing flat).
+
+    Newton's law for contacts hit together, in complementarity form: with
+    :math:`u_j^-` the normal velocities before the impact,
+
+    .. math::
+
+        0 \le \Lambda_{n,j} \perp u_j^+ + e_j u_j^- \ge 0,
+
+    each contact's friction as in :func:`impulse`. Several contacts' laws applied one
+    after another would turn a body landing flat; here each contact's law is solved in
+    turn with the others' impulses held, its own taken back first, and the sweeps go on
+    until no impulse changes (Moreau's nonsmooth Gauss–Seidel; for frictionless
+    contacts it minimises the kinetic energy after the impact over the admissible
+    velocities, whose minimiser is unique although a face's corner impulses are not).
+
+    Returns ``(p_plus, impacts)``: the :class:`Impact` of each contact that takes an
+    impulse, the energy lost by the whole impact listed at the first.
+
+    Raises
+    ------
+    ConvergenceError
+        When the sweeps do not settle in SWEEPS.
+    """
+    from ..errors import ConvergenceError
+
+    params = dict(zip(system.params, prm, strict=True))
+    q, p = np.asarray(q, dtype=float), np.asarray(p, dtype=float)
+    p_minus = p.copy()
+    v_minus = system.inverse_legendre(q, p, t, params)
+    normals = {j: functions.gradient(j, t, q, prm) for j in hit}
+    u_minus = {j: float(normals[j] @ v_minus) for j in hit}
+    goals = {j: -system.contacts[j].restitution * min(u_minus[j], 0.0) for j in hit}
+    taken = {j: np.zeros_like(p) for j in hit}
+    laws: dict[int, Impact] = {}
+    for _ in range(SWEEPS):
+        change = 0.0
+        for j in hit:
+            without = p - taken[j]
+            v = system.inverse_legendre(q, without, t, params)
+            if normals[j] @ v >= goals[j]:
+                new, law = without, None
+            else:
+                new, law = impulse(system, functions, j, t, q, without, prm, target=goals[j])
+            change = max(change, float(np.abs(new - without - taken[j]).max()))
+            taken[j], p = new - without, new
+            laws[j] = law
+        size = max(float(np.abs(d).max()) for d in taken.values())
+        if change <= SETTLED * max(size, np.finfo(float).tiny):
+            break
+    else:
+        raise ConvergenceError(
+            f"contacts {hit} hit at once at t = {t}: their impulses did not settle in "
+            f"{SWEEPS} sweeps (last change {change:.3g} of {size:.3g})"
+        )
+    v_plus = system.inverse_legendre(q, p, t, params)
+    H = system.hamiltonian(np.vstack([q, q]), np.vstack([p_minus, p]), t, params)
+    impacts = []
+    for j in hit:
+        if laws[j] is None:
+            continue
+        impacts.append(
+            Impact(
+                t=float(t),
+                contact=j,
+                normal_impulse=laws[j].normal_impulse,
+                tangential_impulse=laws[j].tangential_impulse,
+                mode=laws[j].mode,
+                normal_velocity=(u_minus[j], float(normals[j] @ v_plus)),
+                energy_lost=float(H[0] - H[1]) if not impacts else 0.0,
+            )
+        )
+    return p, impacts
 
 
 def irreversible_contacts(system) -> list[str]:

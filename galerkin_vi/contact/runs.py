@@ -47,6 +47,7 @@ from .impact import (
     impulse,
     inverse_impulse,
     irreversible_contacts,
+    simultaneous_impulse,
     stop_slip,
 )
 from .outputs import Watch, finish, run_options
@@ -68,6 +69,9 @@ OPEN_GAP = 1e-9
 #: halvings of a complementarity step at most when its iteration fails
 HALVINGS = 2
 
+#: contacts closed at an impact and approaching faster than this fraction of the hit
+#: contact's speed are hit with it (a face landing flat); slower ones rest
+TOGETHER = 1e-8
 #: the modes of ``integrate(contact_mode=...)``
 CONTACT_MODES = ("auto", "event", "time-stepping")
 #: normal impulses (force times step) below this leave a contact released
@@ -400,7 +404,7 @@ class _Run:
             self._has_duals, *stepper.compiled_layout(),
             bool(system.structure.quadratic_in_v), bool(until_release), int(free),
             OPEN_GAP, RELEASED_IMPULSE, BROAD_PHASE, REMAINDER, MAX_IMPACTS_PER_STEP,
-            NORMAL_VANISHES * self.normal_scale, row_t, row_q, row_p, row_grid, force_t,
+            TOGETHER, NORMAL_VANISHES * self.normal_scale, row_t, row_q, row_p, row_grid, force_t,
             normal_out, tangential_out, iterations_out, complementarity_out, impact_data, stats,
         )  # fmt: skip
         taken, status, free = int(stats[0]), int(stats[1]), int(stats[2])
@@ -548,10 +552,18 @@ class _Run:
                 # other contacts' forces turned it); the step goes on from there
                 t, q, p = t_hit, q_hit, p_minus
                 continue
-            p_plus, impact = impulse(
-                self.system, self.functions, j, t_hit, q_hit, p_minus, self.prm
-            )
-            self.impacts.append(impact)
+            together = self._hit_together(j, t_hit, q_hit, v_hit)
+            if len(together) > 1:
+                # a face landing flat: Newton's law of one contact at a time would turn it
+                p_plus, impacts = simultaneous_impulse(
+                    self.system, self.functions, together, t_hit, q_hit, p_minus, self.prm
+                )
+            else:
+                p_plus, impact = impulse(
+                    self.system, self.functions, j, t_hit, q_hit, p_minus, self.prm
+                )
+                impacts = [impact]
+            self.impacts.extend(impacts)
             self.rows([t_hit, t_hit], [q_hit, q_hit], [p_minus, p_plus], grid=False)
             t, q, p = t_hit, q_hit, p_plus
         else:
@@ -622,6 +634,18 @@ class _Run:
             if best is None or alpha < best[0]:
                 best = (alpha, j, result)
         return best
+
+    def _hit_together(self, hit: int, t: float, q, v) -> list[int]:
+        """Contact ``hit`` and the others hit at (t, q) with it: gap closed to OPEN_GAP,
+        approaching at ``v`` faster than TOGETHER times ``hit`` (not resting)."""
+        gaps = self.functions.at(self.functions.gaps, t, q, v, self.prm)
+        speeds = self.functions.at(self.functions.gradients, t, q, v, self.prm) @ v
+        closed = OPEN_GAP * max(1.0, float(np.abs(q).max()))
+        return [hit] + [
+            j
+            for j in range(len(gaps))
+            if j != hit and gaps[j] <= closed and speeds[j] < TOGETHER * speeds[hit]
+        ]
 
     def _velocity_law(self, t: float, q, p, impulses, sticking) -> NDArray[np.float64]:
         r"""The impact law at the velocity level for the contacts that pushed in this step.

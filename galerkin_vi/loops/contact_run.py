@@ -115,8 +115,8 @@ def _copy_step(q, p, y, z, stats, q_to, p_to, y_to, z_to, stats_to):
 def contact_steps(
     fn, t0, k0, h, n_steps, q, p, y, has_duals, b, c, Phi, D, d, prm, n, s, mh, normal, cone,
     cone_len, slip_row, mu, restitution, n_slip, quadratic, until_release, free,
-    open_gap, released, broad_phase, remainder, max_cuts, normal_floor, row_t, row_q, row_p,
-    row_grid,
+    open_gap, released, broad_phase, remainder, max_cuts, together, normal_floor, row_t,
+    row_q, row_p, row_grid,
     force_t, normal_out, tangential_out, iterations_out, complementarity_out, impact_data,
     stats,
 ):  # fmt: skip
@@ -137,12 +137,13 @@ def contact_steps(
     frictionless/stick/slide, normal impulse, two tangential, u-, u+) are written in
     order; the piece ends early (status :data:`FINISHED`) when another step might not
     fit. ``free`` counts the steps without contact force before the first;
-    ``open_gap``, ``released``, ``remainder`` and ``max_cuts`` are
-    :mod:`galerkin_vi.contact.runs`' ``OPEN_GAP``, ``RELEASED_IMPULSE``, ``REMAINDER``
-    and ``MAX_IMPACTS_PER_STEP``; a contact that pushes where its gradient's size is not
-    above ``normal_floor`` hands the step back. ``stats`` receives (grid steps taken,
-    status, the count of free steps, interior-point iterations, rows, force records,
-    impacts).
+    ``open_gap``, ``released``, ``remainder``, ``max_cuts`` and ``together`` are
+    :mod:`galerkin_vi.contact.runs`' ``OPEN_GAP``, ``RELEASED_IMPULSE``, ``REMAINDER``,
+    ``MAX_IMPACTS_PER_STEP`` and ``TOGETHER``; a cut where other contacts are hit with
+    the first (:func:`hit_together`) hands the step back to Python's simultaneous law;
+    a contact that pushes where its gradient's size is not above ``normal_floor`` hands
+    the step back. ``stats`` receives (grid steps taken, status, the count of free
+    steps, interior-point iterations, rows, force records, impacts).
     """
     nc = normal.shape[0]
     m = y.shape[0]
@@ -324,6 +325,11 @@ def contact_steps(
             u_minus = 0.0
             for a in range(n):
                 u_minus += cG[hit * n + a] * v[a]
+            if u_minus < 0.0 and hit_together(hit, u_minus, v, cg, cG, open_gap * scale,
+                                              together, n):  # fmt: skip
+                # a face landing flat: Python's simultaneous law, from the last row
+                return _stop(stats, k, HANDED_BACK, free, total, n_rows, n_forces - 1,
+                             n_impacts)  # fmt: skip
             for a in range(n):
                 q[a] = q_hit[a]
                 p[a] = p_hit[a]
@@ -391,6 +397,24 @@ def contact_steps(
         if until_release and free >= 2:
             return _stop(stats, k + 1, RELEASED, free, total, n_rows, n_forces, n_impacts)
     return _stop(stats, n_steps, FINISHED, free, total, n_rows, n_forces, n_impacts)
+
+
+@kernel
+def hit_together(hit, u_hit, v, cg, cG, closed, together, n):
+    """Whether other contacts are hit at the cut with contact ``hit`` (approaching at
+    ``u_hit``): gap within ``closed`` of zero (``cg``, normals ``cG`` at the cut),
+    approaching at ``v`` faster than ``together`` times ``u_hit``.
+    Python's law takes such a simultaneous impact
+    (:func:`galerkin_vi.contact.impact.simultaneous_impulse`)."""
+    for j in range(cg.shape[0]):
+        if j == hit or cg[j] > closed:
+            continue
+        u = 0.0
+        for a in range(n):
+            u += cG[j * n + a] * v[a]
+        if u < together * u_hit:
+            return True
+    return False
 
 
 @called

@@ -12,14 +12,16 @@ from . import joints
 from .body import RigidBody
 from .loads import BodyForce
 from .motion import BodyMotion
-from .shapes import BodyContact, BodyPoint, Plane, Sphere
+from .shapes import BodyContact, BodyPlane, BodyPoint, Box, Plane, Sphere
 from .system import Multibody
 
 __all__ = [
     "BodyContact",
     "BodyForce",
     "BodyMotion",
+    "BodyPlane",
     "BodyPoint",
+    "Box",
     "Multibody",
     "Plane",
     "RigidBody",

@@ -339,7 +339,7 @@ def _contact(c, j: int, bodies) -> Contact:
         return c
     if not isinstance(c, BodyContact):
         raise TypeError(f"contacts[{j}] must be a BodyContact or a Contact, got {c!r}")
-    shapes = [c.shape] + ([c.other] if not hasattr(c.other, "normal") else [])
+    shapes = [c.shape] + ([c.other] if hasattr(c.other, "body") else [])
     for s in shapes:
         if not any(s.body is b for b in bodies):
             raise ValueError(f"contacts[{j}] is on {s.body.name!r}, not a body of the system")
