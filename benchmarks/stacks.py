@@ -120,9 +120,13 @@ def galerkin_run(kind: str, n: int, h: float, duration: float) -> dict:
     motions = [mb.motion(traj, name) for name in start]
     tail = traj.t >= traj.t[-1] - 1.0
     settled = int(np.searchsorted(traj.t, 1.0))
-    drift = max(
-        float(np.linalg.norm(m.position[settled:] - m.position[settled], axis=1).max())
-        for m in motions
+    drift = (
+        max(
+            float(np.linalg.norm(m.position[settled:] - m.position[settled], axis=1).max())
+            for m in motions
+        )
+        if settled < len(traj.t)
+        else float("nan")
     )
     forces = traj.contact_forces
     its = forces.iterations if forces is not None else np.zeros(1)

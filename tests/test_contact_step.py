@@ -77,7 +77,7 @@ def _steppers(system, method):
     return integrator, numpy_step, compiled
 
 
-def _compare(numpy_stepper, compiled_stepper, t, h, q, p, guess, duals, excluded=None):
+def _compare(numpy_stepper, compiled_stepper, t, h, q, p, guess, duals, excluded=()):
     ref = numpy_stepper.numpy_step(t, h, q, p, guess, duals, excluded)
     got = compiled_stepper.step(t, h, q, p, guess, duals, excluded)
     assert ref.converged and got.converged
@@ -98,7 +98,7 @@ def _compare(numpy_stepper, compiled_stepper, t, h, q, p, guess, duals, excluded
     return ref
 
 
-def _march(system, method, q0, p0, h, steps, duals=None, excluded=None):
+def _march(system, method, q0, p0, h, steps, duals=None, excluded=()):
     """Steps from (q0, p0), each compared; the next starts from the NumPy step."""
     integrator, numpy_stepper, compiled = _steppers(system, method)
     s = method.tables.d.size - 1

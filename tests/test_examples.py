@@ -44,6 +44,10 @@ RUNS = {
         "max joint residual",
     ),
     "die_on_table.py": (["--seconds", "0.5", "--output", str(SMOKE_OUTPUT)], "impacts; the first"),
+    "box_stack.py": (
+        ["--boxes", "2", "--seconds", "0.3", "--output", str(SMOKE_OUTPUT)],
+        "height error",
+    ),
     "explicit_splittings.py": (
         ["--t-final", "20", "--output", str(SMOKE_OUTPUT)],
         "max |energy error|",

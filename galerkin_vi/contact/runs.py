@@ -29,6 +29,7 @@ has released for two steps; ``"event"`` stops there with status
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -72,6 +73,9 @@ HALVINGS = 2
 #: contacts closed at an impact and approaching faster than this fraction of the hit
 #: contact's speed are hit with it (a face landing flat); slower ones rest
 TOGETHER = 1e-8
+#: contacts approaching an impact whose gap their speed closes within this fraction of a
+#: step are hit with it (a face landing flat on a face tilted by round-off)
+SIMULTANEOUS = 1e-6
 #: the modes of ``integrate(contact_mode=...)``
 CONTACT_MODES = ("auto", "event", "time-stepping")
 #: normal impulses (force times step) below this leave a contact released
@@ -451,8 +455,8 @@ class _Run:
             energy_lost=float(H[0] - H[1]),
         )
 
-    def _stepping(self, t: float, q, p, tau: float, k: int, excluded: int | None = None):
-        """One complementarity step of length tau (contact ``excluded`` kept apart)."""
+    def _stepping(self, t: float, q, p, tau: float, k: int, excluded: Sequence[int] = ()):
+        """One complementarity step of length tau (contacts ``excluded`` kept apart)."""
         result = self._attempt(t, q, p, tau, excluded, HALVINGS)
         if not result.converged:
             self._check_geometry(t, q, k)
@@ -477,7 +481,7 @@ class _Run:
             if gap <= OPEN_GAP * scale:
                 self.check_normal(j, t, q)
 
-    def _attempt(self, t: float, q, p, tau: float, excluded: int | None, halvings: int):
+    def _attempt(self, t: float, q, p, tau: float, excluded: Sequence[int], halvings: int):
         """A step of length tau from the last step's forces; failing that, from the
         cones' centres (the last forces may start it far from this one's: a contact
         that just took the load); failing that, as two steps of tau / 2 (a shorter
@@ -514,7 +518,7 @@ class _Run:
 
         A contact open at the step's start that pushes during it was hit inside
         the step: the step is cut where its gap closes (found on steps with
-        that contact kept apart, by regula falsi on their length), the impact
+        the open contacts kept apart, by regula falsi on their length), the impact
         law applied there, and the rest of the step taken again, as in the
         event-driven mode. Returns (q, p, the last step's result, its length) at t_next.
         """
@@ -555,9 +559,7 @@ class _Run:
             together = self._hit_together(j, t_hit, q_hit, v_hit)
             if len(together) > 1:
                 # a face landing flat: Newton's law of one contact at a time would turn it
-                p_plus, impacts = simultaneous_impulse(
-                    self.system, self.functions, together, t_hit, q_hit, p_minus, self.prm
-                )
+                p_plus, impacts = self._simultaneous(together, t_hit, q_hit, p_minus, k)
             else:
                 p_plus, impact = impulse(
                     self.system, self.functions, j, t_hit, q_hit, p_minus, self.prm
@@ -602,14 +604,17 @@ class _Run:
         """(alpha, contact, step result) of the earliest closing of an open contact, or None.
 
         For each contact in ``opened``: the step length alpha in (0, tau) at whose
-        end its gap is zero, on steps that keep it apart (Illinois regula falsi);
-        None when the closing is at the step's start (a resting contact).
+        end its gap is zero, on steps that keep every contact in ``opened`` apart
+        (Illinois regula falsi): the earliest touch is on a step on which none of
+        them has touched yet, and contacts that touch together (a face landing
+        flat) touch at the same alpha. None when the closing is at the step's start
+        (a resting contact).
         """
         best = None
         scale = max(1.0, float(np.abs(q).max()))
         for j in opened:
             g0 = self.functions.gap(j, t, q, self.prm)
-            whole = self._stepping(t, q, p, tau, k, excluded=j)
+            whole = self._stepping(t, q, p, tau, k, excluded=opened)
             g1 = self.functions.gap(j, t + tau, whole.q, self.prm)
             if not g1 < 0.0:
                 continue  # it would not have closed without its force: no impact
@@ -617,7 +622,7 @@ class _Run:
             result = whole
             for _ in range(60):
                 alpha = (a * fb - b * fa) / (fb - fa)
-                result = self._stepping(t, q, p, alpha, k, excluded=j)
+                result = self._stepping(t, q, p, alpha, k, excluded=opened)
                 f = self.functions.gap(j, t + alpha, result.q, self.prm)
                 if abs(f) <= 4 * np.finfo(float).eps * scale or b - a <= 4e-16 * tau:
                     break
@@ -635,20 +640,42 @@ class _Run:
                 best = (alpha, j, result)
         return best
 
+    def _simultaneous(self, together: list[int], t: float, q, p, k: int) -> tuple:
+        """:func:`.impact.simultaneous_impulse`; the run stops where its sweeps do not
+        settle, the states before kept."""
+        try:
+            return simultaneous_impulse(self.system, self.functions, together, t, q, p, self.prm)
+        except ConvergenceError as exc:
+            raise _Stop(
+                RunStatus.NO_CONVERGENCE, f"step {k} (t = {t:.6g}): {exc}; the states "
+                "before are kept", k, t, exc.residual,
+            ) from None  # fmt: skip
+
     def _hit_together(self, hit: int, t: float, q, v) -> list[int]:
-        """Contact ``hit`` and the others hit at (t, q) with it: gap closed to OPEN_GAP,
-        approaching at ``v`` faster than TOGETHER times ``hit`` (not resting)."""
+        """Contact ``hit`` and the others hit at (t, q) with it: gap closed to OPEN_GAP
+        or to what its speed covers in SIMULTANEOUS h, and approaching at ``v`` faster
+        than TOGETHER times ``hit``, or, when ``hit`` is plastic, plastic and resting (a
+        box landing on one that rests on the floor pushes through it). An elastic hit
+        leaves resting contacts to the impacts that follow at once (Newton's cradle)."""
+        contacts = self.system.contacts
         gaps = self.functions.at(self.functions.gaps, t, q, v, self.prm)
         speeds = self.functions.at(self.functions.gradients, t, q, v, self.prm) @ v
-        closed = OPEN_GAP * max(1.0, float(np.abs(q).max()))
+        # closed to OPEN_GAP, or touching within SIMULTANEOUS h at its speed
+        closed = np.maximum(
+            OPEN_GAP * max(1.0, float(np.abs(q).max())), -speeds * SIMULTANEOUS * abs(self.h)
+        )
+        plastic = contacts[hit].restitution == 0.0
         return [hit] + [
             j
             for j in range(len(gaps))
-            if j != hit and gaps[j] <= closed and speeds[j] < TOGETHER * speeds[hit]
+            if j != hit
+            and gaps[j] <= closed[j]
+            and (speeds[j] < TOGETHER * speeds[hit] or (plastic and contacts[j].restitution == 0.0))
         ]
 
     def _velocity_law(self, t: float, q, p, impulses, sticking) -> NDArray[np.float64]:
-        r"""The impact law at the velocity level for the contacts that pushed in this step.
+        r"""The impact law at the velocity level for the contacts that pushed in this step
+        and are closed at its end.
 
         A position-level step leaves the normal velocity of a contact that
         closed during it unchanged in size (it reverses: p_{k+1} = -p_k for a
@@ -658,9 +685,11 @@ class _Run:
         the slip of a contact that stuck during the step (its mean slip zero) is
         stopped at the end (:func:`.impact.stop_slip`).
         """
+        gaps = self.functions.at(self.functions.gaps, t, q, np.zeros_like(q), self.prm)
+        closed = OPEN_GAP * max(1.0, float(np.abs(q).max()))
         for j, impulse_j in enumerate(impulses):
-            if impulse_j <= RELEASED_IMPULSE:
-                continue
+            if impulse_j <= RELEASED_IMPULSE or gaps[j] > closed:
+                continue  # released, or open at the end: its force was the barrier's
             self.check_normal(j, t, q)
             v = self.system.inverse_legendre(q, p, t, self.params)
             if self.functions.gradient(j, t, q, self.prm) @ v < 0.0:
@@ -753,14 +782,15 @@ class _Run:
                     self.integrator.run_spec, q_s, p_s, t_hit - t_s, t_s, self.prm
                 )
             try:
-                p_plus, impact = self.jump(j, t_hit, q_hit, p_minus)
+                p_plus, impacts = self.jump(j, t_hit, q_hit, p_minus)
             except ValueError:
                 if at_once:
                     raise self._persists(j, t_hit, step, "the gap closes again at once") from None
                 # grazing: the gap closed with a normal velocity of round-off size
-                p_plus, impact = p_minus, None
-            if impact is not None:
-                self.impacts.append(impact)
+                p_plus, impacts = p_minus, []
+            impact = impacts[0] if impacts else None
+            if impacts:
+                self.impacts.extend(impacts)
                 self.rows([t_hit, t_hit], [q_hit, q_hit], [p_minus, p_plus], grid=False)
             t_s, q_s, p_s = t_hit, q_hit, p_plus
             if (t_end - t_s) * self.sign <= 4 * np.finfo(float).eps * max(1.0, abs(t_end)):
@@ -778,15 +808,24 @@ class _Run:
         )
 
     def jump(self, j: int, t: float, q, p) -> tuple:
-        """(momentum leaving, :class:`.impact.Impact`) of contact j's impact, met with p.
+        """(momentum leaving, its :class:`.impact.Impact` list) of contact j's impact, met
+        with p.
 
-        Forward in time the impact law; backwards its inverse (the run meets the
-        post-impact state first).
+        Forward in time the impact law, of all the contacts hit with j at once
+        (:func:`.impact.simultaneous_impulse`: a face landing flat); backwards the
+        inverse of j's (the run meets the post-impact state first).
         """
         self.check_normal(j, t, q)
-        if self.sign > 0:
-            return impulse(self.system, self.functions, j, t, q, p, self.prm)
-        return inverse_impulse(self.system, self.functions, j, t, q, p, self.prm)
+        if self.sign < 0:
+            p_minus, impact = inverse_impulse(self.system, self.functions, j, t, q, p, self.prm)
+            return p_minus, [impact]
+        v = self.system.inverse_legendre(q, p, t, self.params)
+        together = self._hit_together(j, t, q, v)
+        if len(together) > 1 and self.functions.gradient(j, t, q, self.prm) @ v < 0.0:
+            step = int(np.floor((t - self._t[0][0]) / self.h))
+            return self._simultaneous(together, t, q, p, step)
+        p_plus, impact = impulse(self.system, self.functions, j, t, q, p, self.prm)
+        return p_plus, [impact]
 
     def check_penetration(self, q, t_first: float, step_first: int) -> None:
         """Stop where a node lies inside a contact that no impact reached."""

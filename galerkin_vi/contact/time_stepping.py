@@ -48,6 +48,7 @@ iteration.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -371,11 +372,11 @@ class ContactStepper:
         return v
 
     # ---------------------------------------------------------------- solve
-    def _fixed(self, excluded: int | None) -> NDArray[np.bool_]:
-        """The entries of y and z of the contact kept apart (none: all False)."""
+    def _fixed(self, excluded: Sequence[int] = ()) -> NDArray[np.bool_]:
+        """The entries of y and z of the contacts kept apart (none: all False)."""
         fixed = np.zeros(self.size, dtype=bool)
-        if excluded is not None:
-            layout = self.layout[excluded]
+        for j in excluded:
+            layout = self.layout[j]
             fixed[layout.normal] = True
             if layout.cone is not None:
                 fixed[layout.cone] = True
@@ -460,12 +461,12 @@ class ContactStepper:
         return residual, jordan / tolerance, largest / tolerance, largest
 
     def step(
-        self, t0: float, h: float, qk, pk, guess_C, duals, excluded: int | None = None
+        self, t0: float, h: float, qk, pk, guess_C, duals, excluded: Sequence[int] = ()
     ) -> StepResult:
         """One step of length h from (q_k, p_k): Mehrotra's predictor–corrector.
 
-        ``excluded``: a contact kept apart (no force: its y is 0 and its rows
-        drop out), as when the first touch of an open contact is looked for.
+        ``excluded``: the contacts kept apart (no force: their y is 0 and their rows
+        drop out), as when the first touch of the open contacts is looked for.
         ``duals`` None starts from the cones' centres (the Jordan identity).
         Compiled when the stepper has the point functions' addresses, else NumPy.
         """
@@ -489,7 +490,7 @@ class ContactStepper:
         )  # fmt: skip
 
     def compiled_step(
-        self, t0: float, h: float, qk, pk, guess_C, duals, excluded: int | None = None
+        self, t0: float, h: float, qk, pk, guess_C, duals, excluded: Sequence[int] = ()
     ) -> StepResult:
         """:meth:`step` by :func:`galerkin_vi.loops.contact_step.contact_step`."""
         from ..loops.contact_step import contact_step
@@ -506,7 +507,7 @@ class ContactStepper:
         layout = self.compiled_layout()
         contact_step(
             self.addresses, float(t0), float(h), qk, pk, x, y, z, duals is not None,
-            -1 if excluded is None else int(excluded), *layout[:-2], layout[-1],
+            self._apart(excluded), *layout[:-2], layout[-1],
             bool(self.system.structure.quadratic_in_v), p_end, stats,
         )  # fmt: skip
         C = np.vstack([np.zeros((1, n)), x[: s * n].reshape(s, n)])
@@ -515,8 +516,14 @@ class ContactStepper:
             t0, h, qk, p_end, C, y, z, int(stats[0]), stats[1], bool(stats[2]), projected=True
         )
 
+    def _apart(self, excluded: Sequence[int]) -> NDArray[np.bool_]:
+        """Per contact: whether it is kept apart (the compiled step's mask)."""
+        apart = np.zeros(len(self.layout), dtype=np.bool_)
+        apart[list(excluded)] = True
+        return apart
+
     def numpy_step(
-        self, t0: float, h: float, qk, pk, guess_C, duals, excluded: int | None = None
+        self, t0: float, h: float, qk, pk, guess_C, duals, excluded: Sequence[int] = ()
     ) -> StepResult:
         """:meth:`step` in NumPy, the full Newton system solved by LU."""
         s = self.tables.d.size - 1

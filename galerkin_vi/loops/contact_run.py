@@ -54,6 +54,8 @@ HANDED_BACK = 2
 #: the broad phase keeps a contact apart whose gap exceeds this many times the distance
 #: its normal velocity covers in the step (plus the coordinates' round-off)
 BROAD_PHASE_MARGIN = 4.0
+#: ``advance``'s ``kept`` for the first-touch trials: every contact open at the start
+OPEN_APART = -2
 #: the columns of ``impact_data``
 IMPACT_FIELDS = ("row", "contact", "mode", "normal", "tangential 1", "tangential 2", "u-", "u+")
 
@@ -243,9 +245,10 @@ def contact_steps(
             for j in range(nc):
                 if not (gap_start[j] > open_gap * scale and force[j] * tau > released):
                     continue
-                # the step length alpha at whose end its gap is zero, on steps keeping it
-                # apart: the whole step first (no impact unless it closes there), then
-                # Illinois regula falsi
+                # the step length alpha at whose end its gap is zero, on steps keeping the
+                # open contacts apart (the earliest touch is on a step none of them has
+                # touched in; a face's corners touch at one alpha): the whole step first
+                # (no impact unless it closes there), then Illinois regula falsi
                 lo = 0.0
                 hi = tau
                 f_lo = gap_start[j]
@@ -257,7 +260,8 @@ def contact_steps(
                     if trial > 0:
                         alpha = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
                     converged, its = advance(
-                        fn, t, alpha, q, p, j, v, x, y, y_try, z, has_duals, apart, gap_start,
+                        fn, t, alpha, q, p, OPEN_APART, v, x, y, y_try, z, has_duals, apart,
+                        gap_start,
                         b, c, Phi, D, d, prm, n, s, mh, normal, cone, cone_len, slip_row, mu,
                         n_slip, quadratic, open_gap, broad_phase, scale, q_end, p_end,
                         step_stats, work, Lqq, Lqv, Lvv, Fv, cg, cG, cH, K, piv,
@@ -326,7 +330,7 @@ def contact_steps(
             for a in range(n):
                 u_minus += cG[hit * n + a] * v[a]
             if u_minus < 0.0 and hit_together(hit, u_minus, v, cg, cG, open_gap * scale,
-                                              together, n):  # fmt: skip
+                                              together, restitution, n):  # fmt: skip
                 # a face landing flat: Python's simultaneous law, from the last row
                 return _stop(stats, k, HANDED_BACK, free, total, n_rows, n_forces - 1,
                              n_impacts)  # fmt: skip
@@ -377,7 +381,8 @@ def contact_steps(
                     return _stop(stats, k, HANDED_BACK, free, total, n_rows, n_forces, n_impacts)
         if pushed:
             if not velocity_law(
-                fn, t_next, q_end, p_end, prm, n, mh, quadratic, force, tau, released, z,
+                fn, t_next, q_end, p_end, prm, n, mh, quadratic, force, tau, released,
+                open_gap * scale, z,
                 normal, cone, cone_len, slip_row, mu, restitution, v, work, Lqq, Lqv, Lvv, Fv,
                 cg, cG, cH, w, Wq, Wv, Wvq, Gq, gt, Dm, targets, lam, K, piv, xs, record,
             ):  # fmt: skip
@@ -400,15 +405,18 @@ def contact_steps(
 
 
 @kernel
-def hit_together(hit, u_hit, v, cg, cG, closed, together, n):
+def hit_together(hit, u_hit, v, cg, cG, closed, together, restitution, n):
     """Whether other contacts are hit at the cut with contact ``hit`` (approaching at
-    ``u_hit``): gap within ``closed`` of zero (``cg``, normals ``cG`` at the cut),
-    approaching at ``v`` faster than ``together`` times ``u_hit``.
-    Python's law takes such a simultaneous impact
-    (:func:`galerkin_vi.contact.impact.simultaneous_impulse`)."""
+    ``u_hit``): gap within ``closed`` of zero (``cg``, normals ``cG`` at the cut), and
+    approaching at ``v`` faster than ``together`` times ``u_hit``, or plastic with
+    ``hit`` plastic (``_Run._hit_together``). Python's law takes such a simultaneous
+    impact (:func:`galerkin_vi.contact.impact.simultaneous_impulse`)."""
+    plastic = restitution[hit] == 0.0
     for j in range(cg.shape[0]):
         if j == hit or cg[j] > closed:
             continue
+        if plastic and restitution[j] == 0.0:
+            return True
         u = 0.0
         for a in range(n):
             u += cG[j * n + a] * v[a]
@@ -417,13 +425,21 @@ def hit_together(hit, u_hit, v, cg, cG, closed, together, n):
     return False
 
 
+@kernel
+def held_apart(j, kept, gap_start, open_gap):
+    """Whether contact j is kept apart: it is ``kept``, or ``kept`` is OPEN_APART and
+    j is open at the step's start."""
+    return j == kept or (kept == OPEN_APART and gap_start[j] > open_gap)
+
+
 @called
 def advance(
     fn, t, tau, q, p, kept, v, x, y, y_try, z, has_duals, apart, gap_start, b, c, Phi, D, d,
     prm, n, s, mh, normal, cone, cone_len, slip_row, mu, n_slip, quadratic, open_gap,
     broad_phase, scale, q_end, p_end, step_stats, work, Lqq, Lqv, Lvv, Fv, cg, cG, cH, K, piv,
 ):  # fmt: skip
-    r"""One step of length tau from (t, q, p), contact ``kept`` (-1: none) kept apart:
+    r"""One step of length tau from (t, q, p), contact ``kept`` kept apart (-1: none;
+    OPEN_APART: every contact open at t, its gap above ``open_gap`` times ``scale``):
     the first guess from the velocity, the broad phase, the step from both starts
     (:func:`step_from_both_starts`; again with every contact where one kept apart by the
     broad phase ends closed) and the momentum projected onto the hidden constraint.
@@ -444,7 +460,9 @@ def advance(
         for a in range(n):
             rate += cG[j * n + a] * v[a]
         reach = BROAD_PHASE_MARGIN * (abs(rate) * tau + open_gap * scale)
-        apart[j] = j == kept or (broad_phase and gap_start[j] > reach)
+        apart[j] = held_apart(j, kept, gap_start, open_gap * scale) or (
+            broad_phase and gap_start[j] > reach
+        )
     converged, its = step_from_both_starts(
         fn, t, tau, q, p, v, x, y, y_try, z, has_duals, apart, b, c, Phi, D, d, prm, n, s,
         mh, normal, cone, cone_len, slip_row, mu, n_slip, p_end, step_stats,
@@ -455,11 +473,11 @@ def advance(
             q_end[a] = q[a] + x[(s - 1) * n + a]
         point_contact(fn, t + tau, q_end, zeros, prm, cg, cG, cH)
         for j in range(nc):
-            if apart[j] and j != kept and cg[j] < 0.0:
+            if apart[j] and not held_apart(j, kept, gap_start, open_gap * scale) and cg[j] < 0:
                 closed = True
         if closed:
             for j in range(nc):
-                apart[j] = j == kept
+                apart[j] = held_apart(j, kept, gap_start, open_gap * scale)
             converged, more = step_from_both_starts(
                 fn, t, tau, q, p, v, x, y, y_try, z, has_duals, apart, b, c, Phi, D, d, prm,
                 n, s, mh, normal, cone, cone_len, slip_row, mu, n_slip, p_end, step_stats,
@@ -589,19 +607,23 @@ def contact_impulse(
 
 @called
 def velocity_law(
-    fn, t, q, p, prm, n, mh, quadratic, force, h, released, z, normal, cone, cone_len,
-    slip_row, mu, restitution, v, work, Lqq, Lqv, Lvv, Fv, cg, cG, cH, w, Wq, Wv, Wvq, Gq,
-    gt, Dm, targets, lam, K, piv, xs, record,
+    fn, t, q, p, prm, n, mh, quadratic, force, h, released, closed, z, normal, cone,
+    cone_len, slip_row, mu, restitution, v, work, Lqq, Lqv, Lvv, Fv, cg, cG, cH, w, Wq, Wv,
+    Wvq, Gq, gt, Dm, targets, lam, K, piv, xs, record,
 ):  # fmt: skip
-    r"""The impact law at the velocity level for the contacts that pushed in a step
-    (``_Run._velocity_law``), ``p`` updated in place: Newton's law
-    :math:`u^+ = -e u^-` for one still approaching at the step's end
-    (:func:`contact_impulse`), then the slip stopped for one that stuck during the step.
-    False where a Newton iteration fails (Python's law takes the step)."""
+    r"""The impact law at the velocity level for the contacts that pushed in a step and
+    are closed at its end, gap at most ``closed`` (``_Run._velocity_law``), ``p`` updated
+    in place: Newton's law :math:`u^+ = -e u^-` for one still approaching at the step's
+    end (:func:`contact_impulse`), then the slip stopped for one that stuck during the
+    step. False where a Newton iteration fails (Python's law takes the step)."""
     nc = normal.shape[0]
     zeros = np.zeros(n)
+    gap = np.zeros(nc)
+    point_contact(fn, t, q, zeros, prm, cg, cG, cH)
     for j in range(nc):
-        if force[j] * h <= released:
+        gap[j] = cg[j]
+    for j in range(nc):
+        if force[j] * h <= released or gap[j] > closed:
             continue
         if not inverse_legendre(fn, t, q, p, prm, n, quadratic, v, work, Lqq, Lqv, Lvv, Fv,
                                 K[:n, :n], piv[:n]):  # fmt: skip

@@ -706,17 +706,15 @@ def direction(
 # --------------------------------------------------------------------- the step
 @driver
 def contact_step(
-    fn, t0, h, qk, pk, x, y, z, has_duals, excluded, b, c, Phi, D, d, prm, n, s, mh,
+    fn, t0, h, qk, pk, x, y, z, has_duals, apart, b, c, Phi, D, d, prm, n, s, mh,
     normal, cone, cone_len, slip_row, mu, n_slip, quadratic, p_end, stats,
 ):  # fmt: skip
     """One step (:func:`interior_point_step`) from Python: a run's first step, the
     event-driven mode's steps through an impact, and the halved steps, which the
     compiled run (:func:`galerkin_vi.loops.contact_run.contact_steps`) hands back. With constraints
     (``mh`` > 0) a converged step's ``p_end`` is projected onto the hidden constraint
-    (:func:`.contact_velocity.project_momentum`); ``stats[2]`` is 0 where that fails."""
-    apart = np.zeros(normal.shape[0], dtype=np.bool_)
-    if excluded >= 0:
-        apart[excluded] = True
+    (:func:`.contact_velocity.project_momentum`); ``stats[2]`` is 0 where that fails.
+    ``apart`` marks the contacts kept apart."""
     iterations = interior_point_step(
         fn, t0, h, qk, pk, x, y, z, has_duals, apart, b, c, Phi, D, d, prm, n, s, mh,
         normal, cone, cone_len, slip_row, mu, n_slip, p_end, stats,
