@@ -800,7 +800,7 @@ class _Run:
             end = self.smooth(q_s, p_s, t_s, t_end - t_s, 1, events=impact is not None)
             if end.status != RunStatus.TERMINATED:
                 self.rows(t_end, end.q[-1], end.p[-1])
-                self.check_penetration(end.q[-1:], t_end, step + 1)
+                self.check_penetration(end.q[-1:], t_end, step + 1, trusted=t_s)
                 return end.q[-1], end.p[-1]
             t_hit = float(end.t[-1])
         raise self._persists(
@@ -827,8 +827,12 @@ class _Run:
         p_plus, impact = impulse(self.system, self.functions, j, t, q, p, self.prm)
         return p_plus, [impact]
 
-    def check_penetration(self, q, t_first: float, step_first: int) -> None:
-        """Stop where a node lies inside a contact that no impact reached."""
+    def check_penetration(
+        self, q, t_first: float, step_first: int, trusted: float | None = None
+    ) -> None:
+        """Stop where a node lies inside a contact that no impact reached; the rows
+        after the node before it are dropped, or after ``trusted`` (an impact's time:
+        the rest of its step went inside)."""
         q = np.atleast_2d(q)
         t = t_first + self.h * np.arange(len(q))
         bound = -PENETRATION * np.maximum(1.0, np.abs(q).max(axis=1))
@@ -847,8 +851,9 @@ class _Run:
                 r = int(inside[0])
                 gap = self.functions.gap(j, t[r], q[r], self.prm)
                 # the rows from this node on are not trusted: drop them
-                self._drop_after(t[r] - self.h)
-                raise self._persists(j, t[r] - self.h, step_first + r - 1, f"gap {gap:.3g}")
+                last = t[r] - self.h if trusted is None or r > 0 else trusted
+                self._drop_after(last)
+                raise self._persists(j, last, step_first + r - 1, f"gap {gap:.3g}")
 
     def _drop_after(self, t: float) -> None:
         t_all = np.concatenate(self._t)
@@ -857,6 +862,8 @@ class _Run:
         self._t, self._q, self._p = [t_all[:keep]], [q_all[:keep]], [p_all[:keep]]
         self._grid = [np.concatenate(self._grid)[:keep]]
         self._watched = min(self._watched, 1)
+        # the impacts of the dropped rows go with them (their step is taken again)
+        self.impacts = [i for i in self.impacts if (i.t - t) * self.sign <= 0.0]
 
     def _which(self, end) -> int:
         """The contact whose event stopped the smooth run ``end``."""
