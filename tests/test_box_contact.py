@@ -198,6 +198,8 @@ def test_the_simultaneous_law_stops_the_face_and_keeps_each_impulse_in_its_cone(
 # --- stacks ------------------------------------------------------------------
 
 
+# each two-box system compiles its point functions for about a minute on a cold cache:
+# the stacks and the pile run with the slow studies (pytest -m slow)
 @pytest.fixture(scope="module", params=["auto", "time-stepping"])
 def two_box_stack(request):
     mb = stack(2)
@@ -206,6 +208,7 @@ def two_box_stack(request):
     return mb, traj
 
 
+@pytest.mark.slow
 def test_a_stack_of_two_boxes_dropped_comes_to_rest_at_its_exact_heights(two_box_stack):
     mb, traj = two_box_stack
     assert traj.success, traj.message
@@ -218,6 +221,7 @@ def test_a_stack_of_two_boxes_dropped_comes_to_rest_at_its_exact_heights(two_box
     np.testing.assert_allclose(upper.position[-1, :2], [0.02, 0.0], atol=1e-9)
 
 
+@pytest.mark.slow
 def test_friction_between_two_moving_boxes_keeps_the_horizontal_momentum():
     """The lower box on a frictionless floor, the upper pushed across it: friction
     between them is internal, so the total horizontal momentum stays to round-off;
@@ -242,6 +246,7 @@ def test_friction_between_two_moving_boxes_keeps_the_horizontal_momentum():
     assert np.abs(upper.position[:, 2] - 3 * A).max() < 1e-12
 
 
+@pytest.mark.slow
 def test_a_vertical_pile_of_spheres_with_friction_stands_at_its_exact_heights():
     r, m = 0.1, 0.2
     balls = [gvi.RigidBody(f"s{i}", mass=m, inertia=[0.4 * m * r**2] * 3) for i in range(3)]

@@ -45,7 +45,7 @@ RUNS = {
     ),
     "die_on_table.py": (["--seconds", "0.5", "--output", str(SMOKE_OUTPUT)], "impacts; the first"),
     "box_stack.py": (
-        ["--boxes", "2", "--seconds", "0.3", "--output", str(SMOKE_OUTPUT)],
+        ["--boxes", "1", "--seconds", "0.3", "--output", str(SMOKE_OUTPUT)],
         "height error",
     ),
     "explicit_splittings.py": (
