@@ -95,11 +95,17 @@ SYSTEMS = {
 }
 
 #: coordinates per size unit and default sizes
-DEFAULT_SIZES = {"lattice": [3, 5, 8, 11, 15, 21, 30], "fpu": [30, 100, 300, 1000], "gravity": [
-    4, 8, 16, 24]}
+DEFAULT_SIZES = {
+    "lattice": [3, 5, 8, 11, 15, 21, 30],
+    "fpu": [30, 100, 300, 1000],
+    "gravity": [4, 8, 16, 24],
+}
 
-METHODS = {"gauss2": "gvi.Galerkin(2, gvi.gauss_legendre(2), nodes='equidistant')",
-           "galerkin2": "gvi.Galerkin(2)", "galerkin1": "gvi.Galerkin(1)"}
+METHODS = {
+    "gauss2": "gvi.Galerkin(2, gvi.gauss_legendre(2), nodes='equidistant')",
+    "galerkin2": "gvi.Galerkin(2)",
+    "galerkin1": "gvi.Galerkin(1)",
+}
 
 CHILD = """
 import time, json
@@ -159,9 +165,14 @@ def child_source(kind: str, size: int, method: str, coefficient: float) -> str:
 def warm_loop_dir() -> Path:
     """The loop cache of this machine (under the default cache root)."""
     out = subprocess.run(
-        [sys.executable, "-c",
-         "from galerkin_vi.loops import loop_cache_dir; print(loop_cache_dir())"],
-        capture_output=True, text=True, check=True,
+        [
+            sys.executable,
+            "-c",
+            "from galerkin_vi.loops import loop_cache_dir; print(loop_cache_dir())",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
     )
     return Path(out.stdout.strip())
 
@@ -177,8 +188,9 @@ def run_one(kind: str, size: int, method: str, loops: Path) -> dict:
         program = child_source(kind, size, method, coefficient)
         # run outside the source tree: "python -c" puts the working directory first on
         # sys.path, which would shadow PYTHONPATH (the tree under test)
-        out = subprocess.run([sys.executable, "-c", program], env=env, capture_output=True,
-                             text=True, cwd=root)
+        out = subprocess.run(
+            [sys.executable, "-c", program], env=env, capture_output=True, text=True, cwd=root
+        )
         if out.returncode:
             raise RuntimeError(f"{kind} {size} {method} failed:\n{out.stderr[-3000:]}")
         return json.loads(out.stdout.strip().splitlines()[-1])
@@ -188,8 +200,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--kind", nargs="+", default=["lattice"], choices=list(SYSTEMS))
     parser.add_argument("--sizes", nargs="+", type=int, default=None)
-    parser.add_argument("--method", nargs="+", default=["gauss2", "galerkin1"],
-                        choices=list(METHODS))
+    parser.add_argument(
+        "--method", nargs="+", default=["gauss2", "galerkin1"], choices=list(METHODS)
+    )
     parser.add_argument("--plot", type=Path, default=None)
     parser.add_argument("--json", type=Path, default=None, help="write the rows here")
     args = parser.parse_args()
@@ -197,8 +210,10 @@ def main() -> None:
     if not (loops / "complete").exists():
         print(f"warning: the loop cache {loops} is not complete: run galerkin-vi warmup")
     rows = []
-    header = (f"{'system':8} {'method':9} {'n':>5} {'terms':>6} {'analysis':>8} {'codegen':>8} "
-              f"{'compile':>8} {'1st step':>8} {'total':>7}")
+    header = (
+        f"{'system':8} {'method':9} {'n':>5} {'terms':>6} {'analysis':>8} {'codegen':>8} "
+        f"{'compile':>8} {'1st step':>8} {'total':>7}"
+    )
     print(header)
     for kind in args.kind:
         for size in args.sizes or DEFAULT_SIZES[kind]:
@@ -206,9 +221,12 @@ def main() -> None:
                 r = run_one(kind, size, method, loops)
                 r.update(kind=kind, size=size, method=method)
                 rows.append(r)
-                print(f"{kind:8} {method:9} {r['n']:5d} {r['terms']:6d} {r['analysis']:8.2f} "
-                      f"{r['codegen']:8.2f} {r['compile']:8.2f} {r['first step']:8.2f} "
-                      f"{r['total']:7.2f}", flush=True)
+                print(
+                    f"{kind:8} {method:9} {r['n']:5d} {r['terms']:6d} {r['analysis']:8.2f} "
+                    f"{r['codegen']:8.2f} {r['compile']:8.2f} {r['first step']:8.2f} "
+                    f"{r['total']:7.2f}",
+                    flush=True,
+                )
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1))
     if args.plot:

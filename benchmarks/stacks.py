@@ -42,12 +42,9 @@ RADIUS, BALL_MASS, WALL = 0.1, 0.2, 0.25
 def box_stack(n: int) -> tuple[gvi.Multibody, dict]:
     inertia = [MASS * (2 * A) ** 2 / 6] * 3
     boxes = [gvi.Box(gvi.RigidBody(f"b{i}", mass=MASS, inertia=inertia), [A] * 3) for i in range(n)]
-    floor = gvi.Plane([0, 0, 1], 0.0)
-    contacts = [gvi.BodyContact(c, floor, friction=FRICTION) for c in boxes[0].corners("-z")]
+    contacts = gvi.standing_contacts(boxes[0], gvi.Plane([0, 0, 1], 0.0), friction=FRICTION)
     for lower, upper in zip(boxes, boxes[1:], strict=False):
-        contacts += [
-            gvi.BodyContact(c, lower.face("+z"), friction=FRICTION) for c in upper.corners("-z")
-        ]
+        contacts += gvi.standing_contacts(upper, lower, friction=FRICTION)
     mb = gvi.Multibody([b.body for b in boxes], gravity=[0, 0, -G], contacts=contacts)
     start = {f"b{i}": [0.01 * (i % 2), 0.0, A + 2 * A * i + 1e-3 * (i + 1)] for i in range(n)}
     return mb, start

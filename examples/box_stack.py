@@ -3,7 +3,8 @@
 Three cubes of side 0.5 m and mass 1 kg (``gvi.Box``), each 1 cm sideways from the
 one below and dropped from 1 mm above it. The four lower corners of the bottom
 cube touch the floor (``gvi.Plane``); those of each cube above touch the upper face
-of the cube below (``Box.face("+z")``, a plane that moves with that cube), all with
+of the cube below (``gvi.standing_contacts``: ``Box.face("+z")``, a plane that moves
+with that cube), all with
 Coulomb friction mu = 0.5 and no restitution. Each face lands flat: its four
 corners are hit at once (:func:`galerkin_vi.contact.impact.simultaneous_impulse`),
 which stops the cube without turning it; then the stack rests in the
@@ -39,12 +40,9 @@ def model(boxes: int) -> tuple[gvi.Multibody, dict]:
         gvi.Box(gvi.RigidBody(f"box{i}", mass=MASS, inertia=inertia), [HALF] * 3)
         for i in range(boxes)
     ]
-    floor = gvi.Plane([0, 0, 1], 0.0)
-    contacts = [gvi.BodyContact(c, floor, friction=FRICTION) for c in cubes[0].corners("-z")]
+    contacts = gvi.standing_contacts(cubes[0], gvi.Plane([0, 0, 1], 0.0), friction=FRICTION)
     for lower, upper in zip(cubes, cubes[1:], strict=False):
-        contacts += [
-            gvi.BodyContact(c, lower.face("+z"), friction=FRICTION) for c in upper.corners("-z")
-        ]
+        contacts += gvi.standing_contacts(upper, lower, friction=FRICTION)
     mb = gvi.Multibody([c.body for c in cubes], gravity=[0, 0, -GRAVITY], contacts=contacts)
     start = {f"box{i}": [0.01 * i, 0.0, HALF * (2 * i + 1) + 1e-3 * (i + 1)] for i in range(boxes)}
     return mb, start

@@ -26,6 +26,7 @@ _SOURCES: dict[str, str] = {
     "RigidBody": "multibody",
     "Sphere": "multibody",
     "joints": "multibody",
+    "standing_contacts": "multibody",
     "ActionStatus": "action",
     "AdaptiveIntegrator": "adaptive",
     "AdaptiveTrajectory": "adaptive",
@@ -143,6 +144,7 @@ if TYPE_CHECKING:  # the names for type checkers and editors
         RigidBody,
         Sphere,
         joints,
+        standing_contacts,
     )
     from .run.events import Event
     from .run.status import RunStatus, SolverResult, SolverStatus

@@ -32,11 +32,9 @@ def cube(name: str, mass: float = 1.0) -> gvi.Box:
 def stack(n: int, floor_friction: float = 0.5, friction: float = 0.5):
     boxes = [cube(f"b{i}") for i in range(n)]
     floor = gvi.Plane([0, 0, 1], 0.0)
-    contacts = [gvi.BodyContact(c, floor, friction=floor_friction) for c in boxes[0].corners("-z")]
+    contacts = gvi.standing_contacts(boxes[0], floor, friction=floor_friction)
     for lower, upper in zip(boxes, boxes[1:], strict=False):
-        contacts += [
-            gvi.BodyContact(c, lower.face("+z"), friction=friction) for c in upper.corners("-z")
-        ]
+        contacts += gvi.standing_contacts(upper, lower, friction=friction)
     return gvi.Multibody([b.body for b in boxes], gravity=[0, 0, -G], contacts=contacts)
 
 
@@ -48,6 +46,15 @@ def quiet_run(mb, q0, v0, h, n_steps, backend="numba", **options):
 
 
 # --- shapes -----------------------------------------------------------------
+
+
+def test_standing_contacts_put_a_face_s_corners_on_a_plane_or_a_box_face():
+    lower, upper = cube("lower"), cube("upper")
+    on_floor = gvi.standing_contacts(lower, gvi.Plane([0, 0, 1], 0.0), friction=0.3)
+    on_box = gvi.standing_contacts(upper, lower, restitution=0.2, face="+x", on="-x")
+    assert [c.friction for c in on_floor] == [0.3] * 4
+    assert all(c.other.body is lower.body and c.other.normal == (-1.0, 0, 0) for c in on_box)
+    assert all(float(c.shape.center[0]) == A and c.restitution == 0.2 for c in on_box)
 
 
 def test_box_corners_and_faces_are_where_the_half_extents_put_them():

@@ -12,7 +12,15 @@ from . import joints
 from .body import RigidBody
 from .loads import BodyForce
 from .motion import BodyMotion
-from .shapes import BodyContact, BodyPlane, BodyPoint, Box, Plane, Sphere
+from .shapes import (
+    BodyContact,
+    BodyPlane,
+    BodyPoint,
+    Box,
+    Plane,
+    Sphere,
+    standing_contacts,
+)
 from .system import Multibody
 
 __all__ = [
@@ -27,4 +35,5 @@ __all__ = [
     "RigidBody",
     "Sphere",
     "joints",
+    "standing_contacts",
 ]

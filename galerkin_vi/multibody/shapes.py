@@ -60,7 +60,15 @@ from ..model.contacts import Contact
 from ..rotations import orthonormal_complement, symbolic_hat, symbolic_vector
 from .body import RigidBody
 
-__all__ = ["BodyContact", "BodyPlane", "BodyPoint", "Box", "Plane", "Sphere"]
+__all__ = [
+    "BodyContact",
+    "BodyPlane",
+    "BodyPoint",
+    "Box",
+    "Plane",
+    "Sphere",
+    "standing_contacts",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -204,6 +212,35 @@ class Box:
         point = list(self.center)
         point[axis] += side * self.half_extents[axis]
         return BodyPlane(self.body, normal, point)
+
+
+def standing_contacts(
+    box: Box,
+    support: Box | Plane,
+    friction: float = 0.0,
+    restitution: float = 0.0,
+    face: str = "-z",
+    on: str = "+z",
+) -> list[BodyContact]:
+    """The contacts of ``box``'s corners of ``face`` with ``support``: a fixed plane, or
+    the face ``on`` of another box (a stack; the faces' planes, right while the corners
+    stay over the face).
+
+    Examples
+    --------
+    >>> import galerkin_vi as gvi
+    >>> cube = lambda name: gvi.Box(gvi.RigidBody(name, mass=1.0, inertia=[1, 1, 1]), [0.5] * 3)
+    >>> lower, upper = cube("lower"), cube("upper")
+    >>> floor = gvi.Plane([0, 0, 1], 0.0)
+    >>> contacts = gvi.standing_contacts(lower, floor, friction=0.5)
+    >>> contacts += gvi.standing_contacts(upper, lower, friction=0.5)
+    >>> len(contacts)
+    8
+    """
+    other = support.face(on) if isinstance(support, Box) else support
+    return [
+        BodyContact(c, other, restitution=restitution, friction=friction) for c in box.corners(face)
+    ]
 
 
 def _face(face: str) -> tuple[int, int]:
