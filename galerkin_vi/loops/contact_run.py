@@ -126,7 +126,7 @@ def contact_steps(
     at most ``n_steps``, each from :math:`t_0 + k h` to :math:`t_0 + (k + 1) h`, the
     impacts of contacts open at a step's start cut out of it
     (``_Run._through_stepping``): such a contact that pushes was hit inside the step,
-    which is cut where its gap closes (on steps that keep it apart, by Illinois
+    which is cut where its gap closes (on steps that keep every open contact apart, by Illinois
     regula falsi on their length), the impact law applied there
     (:func:`contact_impulse`), and the rest of the step taken again.
 
